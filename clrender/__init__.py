@@ -1,0 +1,20 @@
+"""clrender: a tiled deferred renderer whose every pixel is computed by OpenCL kernels."""
+from .camera import Camera
+from .scene import Material, Scene, SceneError, Texture
+
+__all__ = ["Camera", "Material", "Scene", "SceneError", "Texture", "load_scene",
+           "Renderer", "RenderConfig", "Frame", "list_devices"]
+
+
+def __getattr__(name):
+    # Lazy: importing clrender must not initialise OpenCL.
+    if name == "load_scene":
+        from .loaders import load_scene
+        return load_scene
+    if name in ("Renderer", "RenderConfig", "Frame"):
+        from . import renderer
+        return getattr(renderer, name)
+    if name == "list_devices":
+        from .device import list_devices
+        return list_devices
+    raise AttributeError(name)

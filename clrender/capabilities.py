@@ -1,0 +1,77 @@
+"""Every question clrender asks of an OpenCL device, answered in one place.
+
+Modelled on pyopencl.characterize: small functions of a `pyopencl.Device`, so kernels
+and passes never guess at GPU-like limits.
+"""
+from __future__ import annotations
+
+import pyopencl as cl
+
+SIMULATOR_NAMES = ("oclgrind",)
+
+
+def is_cpu(dev: cl.Device) -> bool:
+    return bool(dev.type & cl.device_type.CPU)
+
+
+def is_gpu(dev: cl.Device) -> bool:
+    return bool(dev.type & cl.device_type.GPU)
+
+
+def is_simulator(dev: cl.Device) -> bool:
+    text = f"{dev.platform.name} {dev.name} {dev.vendor}".lower()
+    return any(name in text for name in SIMULATOR_NAMES)
+
+
+def max_work_group_size(dev: cl.Device) -> int:
+    return int(dev.max_work_group_size)
+
+
+def local_mem_bytes(dev: cl.Device) -> int:
+    return int(dev.local_mem_size) if dev.local_mem_type != cl.device_local_mem_type.NONE else 0
+
+
+def has_int64_atomics(dev: cl.Device) -> bool:
+    ext = dev.extensions.split()
+    return "cl_khr_int64_base_atomics" in ext
+
+
+def correctly_rounded_divide_sqrt(dev: cl.Device) -> bool:
+    return bool(dev.single_fp_config & cl.device_fp_config.CORRECTLY_ROUNDED_DIVIDE_SQRT)
+
+
+def tile_size_for(dev: cl.Device, requested: int) -> int:
+    """A square tile of `requested` pixels per side must fit one work-group."""
+    if requested * requested > max_work_group_size(dev) or requested > min(dev.max_work_item_sizes[:2]):
+        raise ValueError(f"tile size {requested} needs a work-group of {requested * requested} work-items; "
+                         f"{dev.name} allows {max_work_group_size(dev)} "
+                         f"(per-dimension {list(dev.max_work_item_sizes[:2])})")
+    return requested
+
+
+def build_options(dev: cl.Device) -> list[str]:
+    """Options every clrender program is built with on this device."""
+    opts = ["-cl-std=CL1.2"]
+    # Bit-exact rasterization (docs/raster_contract.md) needs IEEE division.
+    if correctly_rounded_divide_sqrt(dev):
+        opts.append("-cl-fp32-correctly-rounded-divide-sqrt")
+    return opts
+
+
+def summary(dev: cl.Device) -> dict:
+    """The limits clrender relies on, for `clrender devices` and reports."""
+    return {
+        "type": cl.device_type.to_string(dev.type),
+        "version": dev.version,
+        "driver": dev.driver_version,
+        "compute_units": int(dev.max_compute_units),
+        "max_work_group_size": max_work_group_size(dev),
+        "max_work_item_sizes": list(dev.max_work_item_sizes),
+        "local_mem_bytes": local_mem_bytes(dev),
+        "global_mem_bytes": int(dev.global_mem_size),
+        "max_alloc_bytes": int(dev.max_mem_alloc_size),
+        "int64_atomics": has_int64_atomics(dev),
+        "image_support": bool(dev.image_support),
+        "correctly_rounded_divide": correctly_rounded_divide_sqrt(dev),
+        "simulator": is_simulator(dev),
+    }

@@ -1,0 +1,105 @@
+"""The render-pass contract (after Falcor's RenderPass).
+
+A pass declares the named resources it reads (`inputs`) and writes (`outputs`), owns the
+device buffers behind its outputs, builds its program once, and has a `run()` that only
+enqueues work. The pipeline wires passes by those names.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+import pyopencl as cl
+import pyopencl.array as cla
+
+
+@dataclass
+class Resources:
+    """Named device buffers and per-frame values shared between passes."""
+    buffers: dict = field(default_factory=dict)
+    values: dict = field(default_factory=dict)
+
+    def __getitem__(self, name):
+        if name in self.buffers:
+            return self.buffers[name]
+        if name in self.values:
+            return self.values[name]
+        raise KeyError(f"resource {name!r} was not produced by any pass or the scene upload")
+
+    def __contains__(self, name):
+        return name in self.buffers or name in self.values
+
+
+@dataclass(frozen=True)
+class Overflow:
+    """A buffer whose needed size is only known on the device: the pipeline compares
+    `total` (read back after the frame) with `capacity`, grows and renders again."""
+    name: str
+    total: cla.Array
+    capacity: int
+
+
+class RenderPass:
+    name: str = ""
+    inputs: tuple[str, ...] = ()
+    outputs: tuple[str, ...] = ()
+
+    def __init__(self, device, config):
+        self.device = device
+        self.config = config
+        self.queue = device.queue
+
+    def allocate(self, width: int, height: int) -> None:
+        """(Re)allocate resolution-dependent buffers; called once per resolution."""
+
+    def prepare_scene(self, scene_buffers: Resources) -> None:
+        """(Re)allocate scene-size-dependent buffers; called when the scene changes."""
+
+    def publish(self, res: Resources) -> None:
+        """Put this pass's outputs into `res`."""
+
+    def run(self, res: Resources) -> None:
+        """Enqueue this pass's work. Never waits on the device."""
+        raise NotImplementedError
+
+    def overflows(self) -> list[Overflow]:
+        return []
+
+    def grow(self, name: str, needed: int) -> None:
+        raise NotImplementedError(f"{type(self).__name__} cannot grow {name}")
+
+
+def zeros(queue, n, dtype) -> cla.Array:
+    return cla.zeros(queue, max(int(n), 1), dtype)
+
+
+def empty(queue, n, dtype) -> cla.Array:
+    return cla.empty(queue, max(int(n), 1), dtype)
+
+
+def round_up(n: int, multiple: int) -> int:
+    return (int(n) + multiple - 1) // multiple * multiple
+
+
+def make_scan(context):
+    """Exclusive prefix sum that also writes the grand total (pyopencl's scan)."""
+    from pyopencl.scan import GenericScanKernel
+    return GenericScanKernel(
+        context, np.int32,
+        arguments="__global const int *counts, __global int *offsets, __global int *total",
+        input_expr="counts[i]", scan_expr="a+b", neutral="0",
+        output_statement="offsets[i] = prev_item; if (i + 1 == N) total[0] = item;")
+
+
+_SCANS: dict = {}
+
+
+def scan_for(device):
+    scan = _SCANS.get(device.info.id)
+    if scan is None:
+        scan = _SCANS[device.info.id] = make_scan(device.context)
+    return scan
+
+
+def wait_list(events):
+    return [e for e in events if isinstance(e, cl.Event)]

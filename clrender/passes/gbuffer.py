@@ -1,0 +1,34 @@
+"""G-buffer pass (kernels/gbuffer.cl): resolve visibility into the packed G-buffer."""
+from __future__ import annotations
+
+import numpy as np
+
+from .. import gbuffer as layout
+from .base import RenderPass, empty, round_up
+
+
+class GBufferPass(RenderPass):
+    name = "gbuffer"
+    inputs = ("vis_depth", "vis_prim", "prims", "positions", "normals", "uvs", "triangles", "materials",
+              "texels", "srgb_lut", "tex_infos", "tex_levels", "prev_view_proj")
+    outputs = ("gbuffer",)
+
+    def __init__(self, device, config):
+        super().__init__(device, config)
+        self.kernel = device.program("gbuffer.cl", defines=layout.kernel_defines()).gbuffer_resolve
+
+    def allocate(self, width, height):
+        self.gbuffer = empty(self.queue, len(layout.PLANES) * width * height, np.uint32)
+
+    def publish(self, res):
+        res.buffers["gbuffer"] = self.gbuffer
+
+    def run(self, res):
+        w, h = res["width"], res["height"]
+        self.kernel(self.queue, (round_up(w * h, 64),), None,
+                    res["vis_depth"].data, res["vis_prim"].data, res["prims"].data,
+                    np.int32(w), np.int32(h), np.float32(res["far"]),
+                    res["positions"].data, res["normals"].data, res["uvs"].data, res["triangles"].data,
+                    res["materials"].data, res["texels"].data, res["srgb_lut"].data,
+                    res["tex_infos"].data, res["tex_levels"].data,
+                    res["prev_view_proj"].data, np.int32(res["has_prev"]), self.gbuffer.data)

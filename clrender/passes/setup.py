@@ -1,0 +1,75 @@
+"""Setup pass (kernels/setup.cl): transform, clip, cull and snap triangles into prims."""
+from __future__ import annotations
+
+import numpy as np
+
+from .. import structs
+from .base import Overflow, RenderPass, empty, round_up, scan_for, zeros
+
+
+class SetupPass(RenderPass):
+    name = "setup"
+    inputs = ("positions", "triangles", "tri_material", "materials", "view_proj", "n_tris", "near")
+    outputs = ("prims", "prim_total", "prim_capacity", "tri_status")
+
+    def __init__(self, device, config):
+        super().__init__(device, config)
+        program = device.program("setup.cl")
+        self.count_kernel = program.setup_count
+        self.emit_kernel = program.setup_emit
+        self.scan = scan_for(device)
+        self.n_tris = -1
+        self.capacity = 0
+        self.prim_total = zeros(self.queue, 1, np.int32)
+
+    def prepare_scene(self, scene_res):
+        n = scene_res["n_tris"]
+        if n != self.n_tris:
+            self.n_tris = n
+            self.prim_count = zeros(self.queue, n, np.int32)
+            self.prim_offset = zeros(self.queue, n, np.int32)
+            self.status = zeros(self.queue, n, np.uint8)
+            # Most triangles yield at most one prim; clipping can yield more (grown on demand).
+            self._allocate_prims(max(1024, n + n // 8))
+
+    def _allocate_prims(self, capacity):
+        self.capacity = int(capacity)
+        self.prims = empty(self.queue, self.capacity, structs.prim_dtype)
+
+    def publish(self, res):
+        res.buffers.update(prims=self.prims, prim_total=self.prim_total, tri_status=self.status)
+        res.values["prim_capacity"] = self.capacity
+
+    def run(self, res):
+        n = self.n_tris
+        if n == 0:
+            self.prim_total.fill(0)
+            return
+        w, h = res["width"], res["height"]
+        common = (res["positions"].data, res["triangles"].data, res["tri_material"].data,
+                  res["materials"].data, res["view_proj"].data, np.int32(n), np.int32(w), np.int32(h),
+                  np.float32(res["near"]))
+        gsize = (round_up(n, 64),)
+        self.count_kernel(self.queue, gsize, None, *common, self.prim_count.data, self.status.data)
+        self.scan(self.prim_count, self.prim_offset, self.prim_total, size=n, queue=self.queue)
+        self.emit_kernel(self.queue, gsize, None, *common, self.prim_offset.data, self.prim_count.data,
+                         np.int32(self.capacity), self.prims.data)
+
+    def overflows(self):
+        return [Overflow("prims", self.prim_total, self.capacity)]
+
+    def grow(self, name, needed):
+        self._allocate_prims(round_up(needed + needed // 4, 1024))
+
+    def triangle_stats(self) -> dict:
+        """Per-reason triangle counts from the status bytes (reads back T bytes)."""
+        if self.n_tris <= 0:
+            return {"triangles_in": 0, **{v: 0 for k, v in structs.STATUS_NAMES.items() if k}, "clipped": 0}
+        status = self.status.get(queue=self.queue)[: self.n_tris]
+        counts = np.bincount(status & 15, minlength=8)
+        out = {"triangles_in": int(self.n_tris)}
+        for code, name in structs.STATUS_NAMES.items():
+            if code:
+                out[name] = int(counts[code])
+        out["clipped"] = int(np.count_nonzero(status & structs.STATUS_CLIPPED))
+        return out

@@ -1,0 +1,137 @@
+"""The one-call API: `Renderer(width, height).render(scene, camera) -> Frame`."""
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, field
+from functools import cached_property
+from typing import Optional
+
+import numpy as np
+
+from . import gbuffer as layout
+from .camera import Camera
+from .device import Device, DeviceInfo
+from .scene import Scene
+
+TILE_SIZES = (8, 16, 32)
+
+
+@dataclass(frozen=True)
+class RenderConfig:
+    """Render options. Unknown names are errors (see `RenderConfig.from_options`)."""
+    tile_size: int = 16
+
+    def __post_init__(self):
+        if self.tile_size not in TILE_SIZES:
+            raise ValueError(f"tile_size must be one of {TILE_SIZES}, got {self.tile_size!r}")
+
+    @classmethod
+    def from_options(cls, **options) -> "RenderConfig":
+        known = {f.name for f in dataclasses.fields(cls)}
+        unknown = sorted(set(options) - known)
+        if unknown:
+            raise ValueError(f"unknown render option(s) {unknown}; known: {sorted(known)}")
+        return cls(**options)
+
+
+@dataclass(frozen=True)
+class Frame:
+    """One rendered frame: the packed G-buffer plus decoded views of it.
+
+    Decoded fields are computed on first access from `gbuffer` (planes × H × W uint32)."""
+    gbuffer: np.ndarray
+    far: float
+    stats: dict = field(default_factory=dict)
+
+    @property
+    def height(self) -> int:
+        return int(self.gbuffer.shape[1])
+
+    @property
+    def width(self) -> int:
+        return int(self.gbuffer.shape[2])
+
+    @cached_property
+    def triangle_id(self) -> np.ndarray:
+        return layout.decode(self.gbuffer, "triangle_id").copy()
+
+    @cached_property
+    def _background(self) -> np.ndarray:
+        return self.triangle_id < 0
+
+    @cached_property
+    def depth(self) -> np.ndarray:
+        """View-space depth (float32), +inf on background."""
+        d = layout.decode(self.gbuffer, "linear_depth") * np.float32(self.far)
+        return d.astype(np.float32)
+
+    @cached_property
+    def linear_depth(self) -> np.ndarray:
+        return layout.decode(self.gbuffer, "linear_depth").copy()
+
+    @cached_property
+    def normal(self) -> np.ndarray:
+        n = layout.decode(self.gbuffer, "normal")
+        n[self._background] = 0.0
+        return n
+
+    @cached_property
+    def albedo(self) -> np.ndarray:
+        return layout.decode(self.gbuffer, "albedo")
+
+    @cached_property
+    def specular_intensity(self) -> np.ndarray:
+        return layout.decode(self.gbuffer, "specular_intensity")
+
+    @cached_property
+    def specular_power(self) -> np.ndarray:
+        p = layout.decode(self.gbuffer, "specular_power")
+        p[self._background] = 0.0
+        return p
+
+    @cached_property
+    def velocity(self) -> np.ndarray:
+        return layout.decode(self.gbuffer, "velocity")
+
+    @cached_property
+    def image(self) -> np.ndarray:
+        """(H, W, 3) uint8 sRGB: the albedo until shading lands."""
+        return layout.linear_to_srgb8(self.albedo)
+
+    def aov(self, name: str) -> np.ndarray:
+        names = ("depth", "linear_depth", "normal", "albedo", "triangle_id", "velocity",
+                 "specular_intensity", "specular_power", "image")
+        if name not in names:
+            raise ValueError(f"unknown AOV {name!r}; available: {', '.join(names)}")
+        return getattr(self, name)
+
+
+class Renderer:
+    """Renders scenes at a fixed resolution on one OpenCL device.
+
+    device: None (CLRENDER_DEVICE, else a GPU, else PoCL), a name substring, "P:D", or a DeviceInfo.
+    Options are RenderConfig fields (e.g. tile_size=8)."""
+
+    def __init__(self, width: int = 1280, height: int = 720, device: Optional[str | DeviceInfo] = None,
+                 config: Optional[RenderConfig] = None, **options):
+        if not (isinstance(width, (int, np.integer)) and isinstance(height, (int, np.integer))) \
+                or width < 1 or height < 1 or width > 16384 or height > 16384:
+            raise ValueError(f"image size must be integers in [1, 16384], got {width}x{height}")
+        if config is not None and options:
+            raise ValueError("pass either config= or keyword options, not both")
+        self.width, self.height = int(width), int(height)
+        self.config = config or RenderConfig.from_options(**options)
+        self.device = Device.get(device)
+        from .pipeline import Pipeline
+        self.pipeline = Pipeline(self.device, self.config)
+
+    def render(self, scene: Scene, camera: Optional[Camera] = None,
+               previous_camera: Optional[Camera] = None) -> Frame:
+        from . import scene_gpu
+        if not isinstance(scene, Scene):
+            raise TypeError(f"render() needs a clrender.Scene, got {type(scene).__name__}")
+        camera = camera or scene.default_camera()
+        scene_res = scene_gpu.upload(scene, self.device)
+        planes, stats = self.pipeline.render(scene_res, camera, self.width, self.height, previous_camera)
+        stats["device"] = self.device.name
+        return Frame(gbuffer=planes, far=camera.far, stats=stats)

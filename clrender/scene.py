@@ -1,0 +1,209 @@
+"""Scene model: one flattened, world-space triangle soup with materials and textures.
+
+Every loader (glTF, OBJ/MTL, PLY, STL, TOML) produces this one representation.
+Triangle indices are load order and are what `Frame.triangle_id` reports; the
+scene never reorders or drops triangles (invalid ones are dropped and counted by
+the setup kernel, so ids stay stable).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Optional
+
+import numpy as np
+
+from .camera import Camera
+
+ALPHA_MODES = ("OPAQUE", "MASK", "BLEND")
+WRAP_MODES = ("repeat", "clamp", "mirror")
+
+
+class SceneError(ValueError):
+    """Bad scene input; the message names the file (when there is one) and the problem."""
+
+
+@dataclass(frozen=True)
+class Material:
+    """Blinn-Phong material as the G-buffer stores it (colors are linear)."""
+    name: str = "default"
+    base_color: tuple[float, float, float, float] = (1.0, 1.0, 1.0, 1.0)
+    base_color_texture: int = -1          # index into Scene.textures, -1 = none
+    specular_intensity: float = 0.04
+    specular_power: float = 32.0
+    double_sided: bool = True
+    alpha_mode: str = "OPAQUE"
+    alpha_cutoff: float = 0.5
+
+    def __post_init__(self):
+        if self.alpha_mode not in ALPHA_MODES:
+            raise SceneError(f"material {self.name!r}: alpha_mode must be one of {ALPHA_MODES}, got {self.alpha_mode!r}")
+        if len(self.base_color) != 4:
+            raise SceneError(f"material {self.name!r}: base_color needs 4 components")
+        object.__setattr__(self, "base_color", tuple(float(c) for c in self.base_color))
+
+    @staticmethod
+    def from_metallic_roughness(name, base_color, metallic, roughness, **kw) -> "Material":
+        """glTF metallic-roughness mapped to Blinn-Phong (the mapping the project documents)."""
+        alpha = max(float(roughness), 1e-4) ** 2
+        power = float(np.clip(2.0 / alpha**2 - 2.0, 1.0, 2048.0))
+        return Material(name=name, base_color=tuple(base_color),
+                        specular_intensity=0.04 + 0.96 * float(metallic), specular_power=power, **kw)
+
+
+@dataclass(frozen=True, eq=False)   # identity semantics: cached mip chains key on it
+class Texture:
+    """RGBA8 image, row 0 at the top (as image files store it); color data is sRGB-encoded."""
+    name: str
+    rgba: np.ndarray            # (H, W, 4) uint8
+    wrap_s: str = "repeat"
+    wrap_t: str = "repeat"
+    srgb: bool = True
+
+    def __post_init__(self):
+        rgba = np.ascontiguousarray(self.rgba, dtype=np.uint8)
+        if rgba.ndim != 3 or rgba.shape[2] != 4 or rgba.shape[0] < 1 or rgba.shape[1] < 1:
+            raise SceneError(f"texture {self.name!r}: expected an (H, W, 4) uint8 image, got shape {self.rgba.shape}")
+        if self.wrap_s not in WRAP_MODES or self.wrap_t not in WRAP_MODES:
+            raise SceneError(f"texture {self.name!r}: wrap modes must be in {WRAP_MODES}")
+        object.__setattr__(self, "rgba", rgba)
+
+
+@dataclass
+class Scene:
+    positions: np.ndarray                       # (V, 3) float32, world space
+    normals: np.ndarray                         # (V, 3) float32, unit
+    uvs: np.ndarray                             # (V, 2) float32, glTF convention (v down the image)
+    triangles: np.ndarray                       # (T, 3) int32
+    triangle_material: np.ndarray               # (T,) int32 index into materials
+    materials: list[Material] = field(default_factory=lambda: [Material()])
+    textures: list[Texture] = field(default_factory=list)
+    mesh_names: list[str] = field(default_factory=lambda: ["mesh"])
+    triangle_mesh: Optional[np.ndarray] = None  # (T,) int32 index into mesh_names
+    triangle_face: Optional[np.ndarray] = None  # (T,) int32 face index inside that mesh
+    camera: Optional[Camera] = None
+    source: str = "<arrays>"
+    settings: dict = field(default_factory=dict)  # render settings from a scene file
+
+    def __post_init__(self):
+        self.positions = np.ascontiguousarray(self.positions, dtype=np.float32).reshape(-1, 3)
+        self.normals = np.ascontiguousarray(self.normals, dtype=np.float32).reshape(-1, 3)
+        self.uvs = np.ascontiguousarray(self.uvs, dtype=np.float32).reshape(-1, 2)
+        self.triangles = np.ascontiguousarray(self.triangles, dtype=np.int32).reshape(-1, 3)
+        self.triangle_material = np.ascontiguousarray(self.triangle_material, dtype=np.int32).reshape(-1)
+        n_tri = len(self.triangles)
+        if self.triangle_mesh is None:
+            self.triangle_mesh = np.zeros(n_tri, np.int32)
+        if self.triangle_face is None:
+            self.triangle_face = np.arange(n_tri, dtype=np.int32)
+        self.validate()
+
+    # -- construction -------------------------------------------------------------------------
+    @classmethod
+    def from_arrays(cls, vertices, faces, normals=None, uvs=None, material: Optional[Material] = None,
+                    camera: Optional[Camera] = None) -> "Scene":
+        """A scene from plain arrays. The default material is white and double-sided."""
+        try:
+            positions = np.asarray(vertices, dtype=np.float32)
+            triangles = np.asarray(faces)
+        except (TypeError, ValueError) as exc:
+            raise SceneError(f"<arrays>: vertices/faces are not numeric arrays ({exc})") from None
+        if positions.ndim != 2 or positions.shape[1] != 3:
+            raise SceneError(f"<arrays>: vertices must have shape (V, 3), got {positions.shape}")
+        if triangles.size and not np.issubdtype(triangles.dtype, np.integer):
+            raise SceneError(f"<arrays>: faces must be integers, got dtype {triangles.dtype}")
+        triangles = triangles.astype(np.int64).reshape(-1, 3) if triangles.size else np.zeros((0, 3), np.int64)
+        if triangles.size and (triangles.min() < 0 or triangles.max() >= len(positions)):
+            bad = int(np.argmax((triangles < 0).any(1) | (triangles >= len(positions)).any(1)))
+            raise SceneError(f"<arrays>: face {bad} has a vertex index out of range "
+                             f"{triangles[bad].tolist()} (there are {len(positions)} vertices)")
+        if normals is None:
+            normals = vertex_normals(positions, triangles)
+        if uvs is None:
+            uvs = np.zeros((len(positions), 2), np.float32)
+        normals = np.asarray(normals, np.float32)
+        uvs = np.asarray(uvs, np.float32)
+        if normals.shape != positions.shape:
+            raise SceneError(f"<arrays>: normals must have shape {positions.shape}, got {normals.shape}")
+        if uvs.shape != (len(positions), 2):
+            raise SceneError(f"<arrays>: uvs must have shape {(len(positions), 2)}, got {uvs.shape}")
+        return cls(positions, normals, uvs, triangles.astype(np.int32),
+                   np.zeros(len(triangles), np.int32), [material or Material()], camera=camera)
+
+    # -- queries ------------------------------------------------------------------------------
+    @property
+    def triangle_count(self) -> int:
+        return int(len(self.triangles))
+
+    def triangle_source(self, index: int) -> tuple[str, int]:
+        """Triangle index (as in Frame.triangle_id) -> (mesh name, face index in that mesh)."""
+        if not 0 <= index < self.triangle_count:
+            raise IndexError(f"triangle {index} out of range (scene has {self.triangle_count})")
+        return self.mesh_names[int(self.triangle_mesh[index])], int(self.triangle_face[index])
+
+    def bounds(self) -> np.ndarray:
+        """(2, 3) min/max over finite vertices referenced by triangles."""
+        pts = self.positions[np.unique(self.triangles)] if self.triangle_count else self.positions
+        pts = pts[np.isfinite(pts).all(1)]
+        if len(pts) == 0:
+            return np.zeros((2, 3), np.float32)
+        return np.stack([pts.min(0), pts.max(0)])
+
+    def default_camera(self) -> Camera:
+        """The scene's own camera, else one framing the bounds from +Z."""
+        if self.camera is not None:
+            return self.camera
+        lo, hi = self.bounds().astype(np.float64)
+        center, radius = (lo + hi) / 2, max(float(np.linalg.norm(hi - lo)) / 2, 1e-3)
+        eye = center + np.array([0.0, 0.35, 1.0]) / np.linalg.norm([0.0, 0.35, 1.0]) * radius * 2.2
+        return Camera.look_at(eye, center, (0, 1, 0), 45.0, near=radius * 0.01, far=radius * 10)
+
+    def validate(self) -> None:
+        where = self.source
+        nv, nt = len(self.positions), len(self.triangles)
+        if self.normals.shape != (nv, 3) or self.uvs.shape != (nv, 2):
+            raise SceneError(f"{where}: normals/uvs must have one entry per vertex ({nv})")
+        if nt and (self.triangles.min() < 0 or self.triangles.max() >= nv):
+            raise SceneError(f"{where}: a triangle index is out of range (there are {nv} vertices)")
+        if self.triangle_material.shape != (nt,):
+            raise SceneError(f"{where}: triangle_material must have one entry per triangle ({nt})")
+        if nt and (self.triangle_material.min() < 0 or self.triangle_material.max() >= len(self.materials)):
+            raise SceneError(f"{where}: a triangle references a material that does not exist")
+        for m in self.materials:
+            if not -1 <= m.base_color_texture < len(self.textures):
+                raise SceneError(f"{where}: material {m.name!r} references missing texture {m.base_color_texture}")
+
+    def summary(self) -> dict:
+        lo, hi = self.bounds()
+        return {
+            "source": self.source,
+            "triangles": self.triangle_count,
+            "vertices": int(len(self.positions)),
+            "meshes": len(self.mesh_names),
+            "materials": len(self.materials),
+            "textures": len(self.textures),
+            "texture_sizes": [list(t.rgba.shape[1::-1]) for t in self.textures],
+            "alpha_masked_materials": sum(m.alpha_mode == "MASK" for m in self.materials),
+            "single_sided_materials": sum(not m.double_sided for m in self.materials),
+            "bounds_min": lo.tolist(),
+            "bounds_max": hi.tolist(),
+            "camera": None if self.camera is None else {
+                "eye": self.camera.eye, "target": self.camera.target, "fov_y_deg": self.camera.fov_y_deg},
+        }
+
+
+def vertex_normals(positions: np.ndarray, triangles: np.ndarray) -> np.ndarray:
+    """Area-weighted vertex normals; vertices touching no valid face get (0, 0, 1)."""
+    positions = np.asarray(positions, np.float64)
+    normals = np.zeros_like(positions)
+    if len(triangles):
+        tri = np.asarray(triangles, np.int64)
+        p0, p1, p2 = positions[tri[:, 0]], positions[tri[:, 1]], positions[tri[:, 2]]
+        fn = np.cross(p1 - p0, p2 - p0)
+        fn[~np.isfinite(fn).all(1)] = 0.0
+        for k in range(3):
+            np.add.at(normals, tri[:, k], fn)
+    length = np.linalg.norm(normals, axis=1, keepdims=True)
+    ok = length[:, 0] > 0
+    normals[ok] /= length[ok]
+    normals[~ok] = (0.0, 0.0, 1.0)
+    return normals.astype(np.float32)

@@ -1,0 +1,29 @@
+"""numpy dtypes matching kernels/structs.h (checked against the device in tests)."""
+import numpy as np
+
+PRIM_BACKFACE, PRIM_MASKED = 1, 2
+MAT_DOUBLE_SIDED, MAT_MASK, MAT_BLEND = 1, 2, 4
+WRAP = {"repeat": 0, "clamp": 1, "mirror": 2}
+
+STATUS_NAMES = {0: "emitted", 1: "invalid", 2: "culled_near", 3: "degenerate",
+                4: "culled_backface", 5: "culled_offscreen"}
+STATUS_CLIPPED = 16
+
+prim_dtype = np.dtype([
+    ("x", "<i4", 3), ("tri", "<i4"),
+    ("y", "<i4", 3), ("flags", "<u4"),
+    ("inv_w", "<f4", 3), ("material", "<i4"),
+    ("bary1", "<f4", 3), ("bary2", "<f4", 3),
+    ("area", "<i8"),
+], align=True)
+
+material_dtype = np.dtype([
+    ("base_color", "<f4", 4), ("texture", "<i4"), ("spec_intensity", "<f4"),
+    ("spec_power", "<f4"), ("alpha_cutoff", "<f4"), ("flags", "<u4"), ("pad", "<i4", 3),
+], align=True)
+
+texinfo_dtype = np.dtype([("first_level", "<i4"), ("levels", "<i4"), ("wrap_s", "<i4"), ("wrap_t", "<i4")])
+texlevel_dtype = np.dtype([("offset", "<i4"), ("width", "<i4"), ("height", "<i4"), ("pad", "<i4")])
+
+# name in structs.h -> dtype, for the layout test
+STRUCTS = {"Prim": prim_dtype, "Material": material_dtype, "TexInfo": texinfo_dtype, "TexLevel": texlevel_dtype}

@@ -1,0 +1,205 @@
+/* setup.cl: vertex transform, clipping, culling and triangle setup.
+ *
+ * Algorithm (docs/raster_contract.md §1-4): one work-item per input triangle. Transform the
+ * three vertices to clip space; clip the polygon against the near plane (w >= near) and, only
+ * when a vertex lies outside it, against the guard band |x|,|y| <= G·w that keeps fixed-point
+ * edge functions inside 64 bits; fan-triangulate; snap each piece to 24.8 fixed point; orient
+ * it so area > 0; drop degenerate, back-facing (single-sided materials) and off-screen pieces.
+ * `setup_count` writes how many prims each triangle yields and why it yields none; a prefix
+ * sum turns counts into offsets; `setup_emit` repeats the same arithmetic and writes the prims.
+ *
+ * Buffers: positions float[3V] world space; triangles int[3T]; tri_material int[T];
+ *          materials Material[M]; view_proj float[16] row-major.
+ *          out: prim_count int[T], status uchar[T] (STATUS_*), prims Prim[capacity].
+ * Work-groups: 1-D, any size; no local memory, no barriers.
+ */
+#pragma OPENCL FP_CONTRACT OFF
+#include "structs.h"
+
+#ifndef GUARD_PIXELS
+#define GUARD_PIXELS 262144.0f   /* 2^18: |snapped coordinate| < 2^27, edge functions < 2^56 */
+#endif
+#define MAX_POLY 9               /* 3 vertices + one per clip plane (near + 4 guard planes) + 1 */
+
+typedef struct {
+    float4 c;        /* clip-space position */
+    float b1, b2;    /* barycentric coordinates in the input triangle */
+} ClipVert;
+
+/* Signed distance to clip plane `plane` (0 = near, 1..4 = guard band). */
+static float plane_distance(int plane, float4 c, float near, float gx, float gy)
+{
+    switch (plane) {
+    case 0: return c.w - near;
+    case 1: return gx * c.w - c.x;
+    case 2: return gx * c.w + c.x;
+    case 3: return gy * c.w - c.y;
+    default: return gy * c.w + c.y;
+    }
+}
+
+/* The point where edge a-b crosses the plane, computed from the inside endpoint `a`
+ * so that two triangles sharing the edge get the same vertex. */
+static ClipVert intersect(ClipVert a, float da, ClipVert b, float db)
+{
+    float t = da / (da - db);
+    ClipVert q;
+    q.c.x = a.c.x + t * (b.c.x - a.c.x);
+    q.c.y = a.c.y + t * (b.c.y - a.c.y);
+    q.c.z = a.c.z + t * (b.c.z - a.c.z);
+    q.c.w = a.c.w + t * (b.c.w - a.c.w);
+    q.b1 = a.b1 + t * (b.b1 - a.b1);
+    q.b2 = a.b2 + t * (b.b2 - a.b2);
+    return q;
+}
+
+/* Sutherland-Hodgman against one plane; returns the new vertex count. */
+static int clip_against(int plane, const ClipVert* in, int n, ClipVert* out, float near, float gx, float gy)
+{
+    int m = 0;
+    for (int i = 0; i < n; ++i) {
+        ClipVert a = in[i], b = in[(i + 1) % n];
+        float da = plane_distance(plane, a.c, near, gx, gy);
+        float db = plane_distance(plane, b.c, near, gx, gy);
+        if (da >= 0.0f) out[m++] = a;
+        if ((da >= 0.0f) != (db >= 0.0f))
+            out[m++] = (da >= 0.0f) ? intersect(a, da, b, db) : intersect(b, db, a, da);
+    }
+    return m;
+}
+
+static float4 transform(global const float* m, float x, float y, float z)
+{
+    float4 c;
+    c.x = ((m[0] * x + m[1] * y) + m[2] * z) + m[3];
+    c.y = ((m[4] * x + m[5] * y) + m[6] * z) + m[7];
+    c.z = ((m[8] * x + m[9] * y) + m[10] * z) + m[11];
+    c.w = ((m[12] * x + m[13] * y) + m[14] * z) + m[15];
+    return c;
+}
+
+static int snap(float ndc, float size)   /* 24.8 fixed point, round half to even */
+{
+    return (int)rint(((ndc + 1.0f) * 0.5f) * size * 256.0f);
+}
+
+static int snap_y(float ndc, float size)
+{
+    return (int)rint(((1.0f - ndc) * 0.5f) * size * 256.0f);
+}
+
+static int floor_div256(int v) { return v >> 8; }   /* arithmetic shift = floor for negatives */
+
+/* Builds prim `k` of the fan into *p; returns its status (STATUS_EMITTED when kept). */
+static int make_prim(const ClipVert* poly, int k, int tri, int material, uint mat_flags,
+                     int width, int height, Prim* p)
+{
+    const ClipVert* v[3] = { &poly[0], &poly[k + 1], &poly[k + 2] };
+    for (int i = 0; i < 3; ++i) {
+        float w = v[i]->c.w;
+        p->x[i] = snap(v[i]->c.x / w, (float)width);
+        p->y[i] = snap_y(v[i]->c.y / w, (float)height);
+        p->inv_w[i] = 1.0f / w;
+        p->bary1[i] = v[i]->b1;
+        p->bary2[i] = v[i]->b2;
+    }
+    long area = (long)(p->x[1] - p->x[0]) * (long)(p->y[2] - p->y[0])
+              - (long)(p->x[2] - p->x[0]) * (long)(p->y[1] - p->y[0]);
+    if (area == 0) return STATUS_DEGENERATE;
+    p->flags = (mat_flags & MAT_MASK) ? PRIM_MASKED : 0u;
+    if (area > 0) {                       /* clockwise in NDC: a back face */
+        if (!(mat_flags & MAT_DOUBLE_SIDED)) return STATUS_BACKFACE;
+        p->flags |= PRIM_BACKFACE;
+    } else {                              /* front face: swap v1, v2 so that area > 0 */
+        int t; float f;
+        t = p->x[1]; p->x[1] = p->x[2]; p->x[2] = t;
+        t = p->y[1]; p->y[1] = p->y[2]; p->y[2] = t;
+        f = p->inv_w[1]; p->inv_w[1] = p->inv_w[2]; p->inv_w[2] = f;
+        f = p->bary1[1]; p->bary1[1] = p->bary1[2]; p->bary1[2] = f;
+        f = p->bary2[1]; p->bary2[1] = p->bary2[2]; p->bary2[2] = f;
+        area = -area;
+    }
+    /* Pixel centers (256·i + 128) inside the bounding box, clipped to the image. */
+    int min_x = min(min(p->x[0], p->x[1]), p->x[2]), max_x = max(max(p->x[0], p->x[1]), p->x[2]);
+    int min_y = min(min(p->y[0], p->y[1]), p->y[2]), max_y = max(max(p->y[0], p->y[1]), p->y[2]);
+    int px0 = max(floor_div256(min_x - 128 + 255), 0), px1 = min(floor_div256(max_x - 128), width - 1);
+    int py0 = max(floor_div256(min_y - 128 + 255), 0), py1 = min(floor_div256(max_y - 128), height - 1);
+    if (px0 > px1 || py0 > py1) return STATUS_OFFSCREEN;
+    p->tri = tri;
+    p->material = material;
+    p->area = area;
+    return STATUS_EMITTED;
+}
+
+/* Runs the whole setup of triangle `t`; writes up to `room` prims to dst (when non-null). */
+static int setup_triangle(int t, global const float* positions, global const int* triangles,
+                          global const int* tri_material, global const Material* materials,
+                          global const float* view_proj, int width, int height, float near,
+                          global Prim* dst, int room, uchar* status)
+{
+    ClipVert poly_a[MAX_POLY], poly_b[MAX_POLY];
+    const float gx = GUARD_PIXELS * 2.0f / (float)width, gy = GUARD_PIXELS * 2.0f / (float)height;
+    int outside = 0;
+    for (int i = 0; i < 3; ++i) {
+        int vi = triangles[3 * t + i];
+        float x = positions[3 * vi], y = positions[3 * vi + 1], z = positions[3 * vi + 2];
+        if (!(isfinite(x) && isfinite(y) && isfinite(z))) { *status = STATUS_INVALID; return 0; }
+        poly_a[i].c = transform(view_proj, x, y, z);
+        poly_a[i].b1 = (i == 1) ? 1.0f : 0.0f;
+        poly_a[i].b2 = (i == 2) ? 1.0f : 0.0f;
+        for (int plane = 0; plane < 5; ++plane)
+            if (plane_distance(plane, poly_a[i].c, near, gx, gy) < 0.0f) outside |= 1 << plane;
+    }
+    int n = 3;
+    ClipVert* poly = poly_a;
+    if (outside) {
+        ClipVert* other = poly_b;
+        for (int plane = 0; plane < 5 && n > 0; ++plane) {
+            if (!(outside & (1 << plane))) continue;
+            n = clip_against(plane, poly, n, other, near, gx, gy);
+            ClipVert* tmp = poly; poly = other; other = tmp;
+        }
+        if (n < 3) { *status = (outside & 1) ? STATUS_CULLED_NEAR : STATUS_OFFSCREEN; return 0; }
+    }
+    int material = tri_material[t];
+    uint mat_flags = materials[material].flags;
+    int emitted = 0, last = STATUS_DEGENERATE;
+    for (int k = 0; k + 2 < n; ++k) {
+        Prim p;
+        last = make_prim(poly, k, t, material, mat_flags, width, height, &p);
+        if (last != STATUS_EMITTED) continue;
+        if (dst && emitted < room) dst[emitted] = p;
+        ++emitted;
+    }
+    *status = (uchar)((emitted ? STATUS_EMITTED : last) | (outside ? STATUS_CLIPPED : 0));
+    return emitted;
+}
+
+kernel void setup_count(global const float* positions, global const int* triangles,
+                        global const int* tri_material, global const Material* materials,
+                        global const float* view_proj, int n_tris, int width, int height, float near,
+                        global int* prim_count, global uchar* status)
+{
+    int t = get_global_id(0);
+    if (t >= n_tris) return;
+    uchar s;
+    prim_count[t] = setup_triangle(t, positions, triangles, tri_material, materials, view_proj,
+                                   width, height, near, 0, 0, &s);
+    status[t] = s;
+}
+
+kernel void setup_emit(global const float* positions, global const int* triangles,
+                       global const int* tri_material, global const Material* materials,
+                       global const float* view_proj, int n_tris, int width, int height, float near,
+                       global const int* prim_offset, global const int* prim_count,
+                       int capacity, global Prim* prims)
+{
+    int t = get_global_id(0);
+    if (t >= n_tris || prim_count[t] == 0) return;
+    int offset = prim_offset[t];
+    int room = capacity - offset;       /* overflow is detected on the host from the total */
+    if (room <= 0) return;
+    uchar s;
+    setup_triangle(t, positions, triangles, tri_material, materials, view_proj,
+                   width, height, near, prims + offset, room, &s);
+}

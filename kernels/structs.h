@@ -1,0 +1,67 @@
+/* Structs shared by host and device. clrender/structs.py holds the matching numpy dtypes
+ * (tests/test_structs.py checks sizes and offsets on every device). Only 32/64-bit scalars
+ * and fixed arrays: no bool, no float3, so the layout is the same on every compiler. */
+#ifndef CLRENDER_STRUCTS_H
+#define CLRENDER_STRUCTS_H
+
+/* Prim.flags */
+#define PRIM_BACKFACE 1u   /* back face of a double-sided material: flip its normal */
+#define PRIM_MASKED   2u   /* alpha MASK material: sample alpha in the raster loop */
+
+/* Material.flags */
+#define MAT_DOUBLE_SIDED 1u
+#define MAT_MASK         2u
+#define MAT_BLEND        4u
+
+/* Setup status per input triangle (a byte); STATUS_CLIPPED is or-ed in. */
+#define STATUS_EMITTED    0
+#define STATUS_INVALID    1   /* non-finite vertex */
+#define STATUS_CULLED_NEAR 2  /* entirely in front of the near plane */
+#define STATUS_DEGENERATE 3   /* zero area once snapped */
+#define STATUS_BACKFACE   4   /* back face of a single-sided material */
+#define STATUS_OFFSCREEN  5   /* covers no pixel center of the image */
+#define STATUS_CLIPPED    16
+
+/* A screen-space triangle ready to rasterize: a whole input triangle or one piece of a
+ * clipped one. Vertices are 24.8 fixed point and ordered so that `area` > 0. */
+typedef struct {
+    int   x[3];
+    int   tri;        /* input triangle index = Frame.triangle_id */
+    int   y[3];
+    uint  flags;      /* PRIM_* */
+    float inv_w[3];   /* 1 / view depth at each vertex */
+    int   material;
+    float bary1[3];   /* barycentric coordinates (b1, b2) of each vertex in the input triangle */
+    float bary2[3];
+    long  area;       /* twice the signed area, 24.8 units squared */
+} Prim;
+
+typedef struct {
+    float base_color[4];  /* linear RGBA factor */
+    int   texture;        /* index into TexInfo, -1 = none */
+    float spec_intensity;
+    float spec_power;
+    float alpha_cutoff;
+    uint  flags;          /* MAT_* */
+    int   pad[3];
+} Material;
+
+#define WRAP_REPEAT 0
+#define WRAP_CLAMP  1
+#define WRAP_MIRROR 2
+
+typedef struct {
+    int first_level;   /* index into TexLevel */
+    int levels;
+    int wrap_s;
+    int wrap_t;
+} TexInfo;
+
+typedef struct {
+    int offset;        /* first texel (RGBA8 in one uint, R in the low byte) */
+    int width;
+    int height;
+    int pad;
+} TexLevel;
+
+#endif
