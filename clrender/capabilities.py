@@ -49,6 +49,23 @@ def tile_size_for(dev: cl.Device, requested: int) -> int:
     return requested
 
 
+def raster_vector_width(dev: cl.Device, tile: int) -> int:
+    """Pixels per work-item in the fine raster: 1 on GPUs (a pixel per lane); on CPUs an
+    explicit vector as wide as the SIMD unit, since PoCL cannot vectorize across work-items
+    through the raster's data-dependent prim loop. CLRENDER_RASTER_VEC overrides (tests)."""
+    import os
+    forced = os.environ.get("CLRENDER_RASTER_VEC")
+    if forced:
+        width = int(forced)
+    elif is_cpu(dev):
+        width = 16 if int(dev.preferred_vector_width_float) >= 16 else 8
+    else:
+        width = 1
+    if width not in (1, 4, 8, 16):
+        raise ValueError(f"raster vector width must be 1, 4, 8 or 16, got {width}")
+    return min(width, tile)
+
+
 def build_options(dev: cl.Device) -> list[str]:
     """Options every clrender program is built with on this device."""
     opts = ["-cl-std=CL1.2"]

@@ -24,7 +24,7 @@ kernel void gbuffer_resolve(global const float* vis_depth, global const int* vis
                             global const float* positions, global const float* normals,
                             global const float* uvs, global const int* triangles,
                             global const Material* materials,
-                            global const uint* texels, constant float* srgb_lut,
+                            global const uint* texels, constant float* srgb_lut, constant float* srgb_bounds,
                             global const TexInfo* tex_infos, global const TexLevel* tex_levels,
                             global const float* prev_view_proj, int has_prev,
                             global uint* gbuffer)
@@ -76,7 +76,7 @@ kernel void gbuffer_resolve(global const float* vis_depth, global const int* vis
             }
         }
 
-        GB_PUT(planes, ALBEDO, pack_srgb8x3(color.xyz));
+        GB_PUT(planes, ALBEDO, pack_srgb8x3(color.xyz, srgb_bounds));
         GB_PUT(planes, SPECULAR_INTENSITY, pack_unorm8(m.spec_intensity));
         GB_PUT(planes, LINEAR_DEPTH, as_uint(vis_depth[pix] / far));
         GB_PUT(planes, NORMAL, pack_oct12x2(n));

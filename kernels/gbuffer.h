@@ -62,15 +62,20 @@ static inline uint pack_float2(float2 f, int bits)
     return (unorm(f.x, bits) << bits) | unorm(f.y, bits);
 }
 
-static inline float linear_to_srgb(float x)
+/* sRGB encoding without pow(): srgb_bounds[k] is the linear value halfway between codes
+ * k and k+1 (host-computed), so the code is the number of bounds below x (binary search). */
+static inline uint srgb8_encode(float x, constant float* srgb_bounds)
 {
-    x = clamp(x, 0.0f, 1.0f);
-    return x <= 0.0031308f ? x * 12.92f : 1.055f * pow(x, 1.0f / 2.4f) - 0.055f;
+    uint code = 0;
+    for (uint step = 128; step > 0; step >>= 1)
+        if (x >= srgb_bounds[code + step - 1]) code += step;
+    return code;
 }
 
-static inline uint pack_srgb8x3(float3 c)
+static inline uint pack_srgb8x3(float3 c, constant float* srgb_bounds)
 {
-    return unorm(linear_to_srgb(c.x), 8) | (unorm(linear_to_srgb(c.y), 8) << 8) | (unorm(linear_to_srgb(c.z), 8) << 16);
+    return srgb8_encode(c.x, srgb_bounds) | (srgb8_encode(c.y, srgb_bounds) << 8)
+         | (srgb8_encode(c.z, srgb_bounds) << 16);
 }
 
 static inline uint pack_unorm8(float v) { return unorm(v, 8); }

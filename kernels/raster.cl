@@ -1,16 +1,19 @@
 /* raster.cl: fine rasterization of binned prims into a visibility buffer.
  *
- * Algorithm (docs/raster_contract.md §5-7): one work-group per TILE×TILE screen tile, one
- * work-item per pixel. Every work-item walks its tile's prim list in the same order (so PoCL
- * vectorizes the loop across the tile's pixels), evaluates the three integer edge functions at
- * its pixel center with the top-left rule, computes the perspective-correct view depth, and
- * keeps the nearest fragment (ties: lower triangle id, then lower prim index). Alpha-masked
- * prims sample their base color alpha only when they would win. No barriers, no local memory.
+ * Algorithm (docs/raster_contract.md §5-7): one work-group per TILE×TILE screen tile; each
+ * work-item owns a run of VEC horizontally adjacent pixels (VEC = 1 on GPUs: one pixel per
+ * work-item; 8 or 16 on CPUs, where explicit vectors replace the implicit vectorization that
+ * PoCL cannot apply across a data-dependent loop). Every work-item walks its tile's prim list,
+ * skips prims whose bounding box misses its run, evaluates the three integer edge functions
+ * at its pixel centers with the top-left rule (32-bit lanes when the prim is small enough to
+ * be exact in 32 bits, else 64-bit), computes the perspective-correct view depth, and keeps
+ * the nearest fragment (ties: lower triangle id, then lower prim index). Alpha-masked prims
+ * sample their base-color alpha only for lanes they would win. No barriers, no local memory.
  *
  * Buffers: prims Prim[*]; tile_offsets/tile_counts int[tiles]; tile_prims int[list_capacity];
  *          scene uvs float[2V], triangles int[3T], materials Material[M]; textures (texture.h).
  *          out: vis_depth float[W·H] (view depth, +inf = nothing), vis_prim int[W·H] (-1).
- * Work-groups: (TILE, TILE), global size = tiles × TILE.
+ * Work-groups: (TILE/VEC, TILE); global size = (tiles_x·TILE/VEC, tiles_y·TILE).
  */
 #pragma OPENCL FP_CONTRACT OFF
 #include "surface.h"
@@ -18,8 +21,45 @@
 #ifndef TILE
 #define TILE 16
 #endif
+#ifndef VEC
+#define VEC 8
+#endif
 
-kernel __attribute__((reqd_work_group_size(TILE, TILE, 1)))
+#define CAT_(a, b) a##b
+#define CAT(a, b) CAT_(a, b)
+#if VEC == 1
+typedef int intV;
+typedef long longV;
+typedef float floatV;
+#define LANES ((intV)0)
+#define convert_intV(x) ((int)(x))
+#define convert_floatV(x) ((float)(x))
+#define convert_longV(x) ((long)(x))
+#define ANY(m) (m)
+#define LANE(v, i) (v)
+#else
+typedef CAT(int, VEC) intV;
+typedef CAT(long, VEC) longV;
+typedef CAT(float, VEC) floatV;
+#if VEC == 4
+#define LANES ((intV)(0, 1, 2, 3))
+#elif VEC == 8
+#define LANES ((intV)(0, 1, 2, 3, 4, 5, 6, 7))
+#elif VEC == 16
+#define LANES ((intV)(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15))
+#endif
+#define convert_intV CAT(convert_int, VEC)
+#define convert_floatV CAT(convert_float, VEC)
+#define convert_longV CAT(convert_long, VEC)
+#define ANY(m) any(m)
+#define LANE(v, i) (((int*)&(v))[i])
+#endif
+
+/* Prims whose bounding box is at most SMALL_EXTENT (24.8 units) on both axes have exact
+ * 32-bit edge functions on any run inside their tile range: |d| < 2^14, |offset| < 2^15. */
+#define SMALL_EXTENT (64 * 256)
+
+kernel __attribute__((reqd_work_group_size(TILE / VEC, TILE, 1)))
 void raster_tiles(global const Prim* prims, global const int* tile_offsets, global const int* tile_counts,
                   global const int* tile_prims, int list_capacity, int tiles_x,
                   int width, int height, float far,
@@ -28,39 +68,83 @@ void raster_tiles(global const Prim* prims, global const int* tile_offsets, glob
                   global const TexInfo* tex_infos, global const TexLevel* tex_levels,
                   global float* vis_depth, global int* vis_prim)
 {
-    const int px = get_global_id(0), py = get_global_id(1);
+    const int px0 = get_global_id(0) * VEC, py = get_global_id(1);
     const int tile = get_group_id(1) * tiles_x + get_group_id(0);
-    const long sx = (long)px * 256 + 128, sy = (long)py * 256 + 128;
+    const int sx0 = px0 * 256 + 128, sy = py * 256 + 128;     /* first sample of the run */
+    const int sx_last = sx0 + (VEC - 1) * 256;
     const Textures tx = { texels, srgb_lut, tex_infos, tex_levels };
 
-    float best_depth = INFINITY;
-    int best_tri = INT_MAX, best_prim = -1;
+    floatV best_depth = (floatV)INFINITY;
+    intV best_tri = (intV)INT_MAX, best_prim = (intV)(-1);
     const int start = tile_offsets[tile];
     const int end = min(start + tile_counts[tile], list_capacity);
     for (int i = start; i < end; ++i) {
         const int pi = tile_prims[i];
         const Prim p = prims[pi];
-        long e[3];
-        prim_edges(&p, sx, sy, e);
-        bool inside = true;
-        for (int k = 0; k < 3; ++k)
-            inside &= e[k] > 0 || (e[k] == 0 && edge_is_top_left(&p, k));
-        if (!inside) continue;
-        float num = ((float)e[1] * p.inv_w[0] + (float)e[2] * p.inv_w[1]) + (float)e[0] * p.inv_w[2];
-        float depth = (float)p.area / num;
-        bool wins = depth < best_depth ||
-                    (depth == best_depth && (p.tri < best_tri || (p.tri == best_tri && pi < best_prim)));
-        if (!wins || depth > far) continue;
-        if (p.flags & PRIM_MASKED) {
-            Material m = materials[p.material];
-            if (surface_base_color(&p, px, py, m, uvs, triangles, tx).w < m.alpha_cutoff) continue;
+        const int min_x = min(min(p.x[0], p.x[1]), p.x[2]), max_x = max(max(p.x[0], p.x[1]), p.x[2]);
+        const int min_y = min(min(p.y[0], p.y[1]), p.y[2]), max_y = max(max(p.y[0], p.y[1]), p.y[2]);
+        if (sy < min_y || sy > max_y || sx_last < min_x || sx0 > max_x) continue;
+
+        /* E_k(lane) = base_k + step_k · lane; inside when E_k > thr_k (top-left: thr = -1). */
+        intV inside_i;
+        floatV e_f[3];
+        if (max_x - min_x <= SMALL_EXTENT && max_y - min_y <= SMALL_EXTENT) {
+            intV ok = (intV)(-1);
+            for (int k = 0; k < 3; ++k) {
+                int k1 = (k + 1) % 3;
+                int dx = p.x[k1] - p.x[k], dy = p.y[k1] - p.y[k];
+                int base = dx * (sy - p.y[k]) - dy * (sx0 - p.x[k]);
+                intV e = (intV)base + (intV)(-dy * 256) * LANES;
+                int thr = ((dy == 0 && dx > 0) || dy < 0) ? -1 : 0;
+                ok &= e > (intV)thr;
+                e_f[k] = convert_floatV(e);
+            }
+            inside_i = ok;
+        } else {
+            longV ok = (longV)(-1);
+            for (int k = 0; k < 3; ++k) {
+                int k1 = (k + 1) % 3;
+                long dx = p.x[k1] - p.x[k], dy = p.y[k1] - p.y[k];
+                long base = dx * (long)(sy - p.y[k]) - dy * (long)(sx0 - p.x[k]);
+                longV e = (longV)base + (longV)(-dy * 256) * convert_longV(LANES);
+                long thr = ((dy == 0 && dx > 0) || dy < 0) ? -1 : 0;
+                ok &= e > (longV)thr;
+                e_f[k] = convert_floatV(e);
+            }
+            inside_i = convert_intV(ok);
         }
-        best_depth = depth;
-        best_tri = p.tri;
-        best_prim = pi;
+        if (!ANY(inside_i)) continue;
+
+        floatV num = (e_f[1] * (floatV)p.inv_w[0] + e_f[2] * (floatV)p.inv_w[1]) + e_f[0] * (floatV)p.inv_w[2];
+        floatV depth = (floatV)((float)p.area) / num;
+        intV wins = inside_i & (depth <= (floatV)far) &
+                    ((depth < best_depth) |
+                     ((depth == best_depth) & (((intV)p.tri < best_tri) |
+                                               (((intV)p.tri == best_tri) & ((intV)pi < best_prim)))));
+        if (!ANY(wins)) continue;
+        if (p.flags & PRIM_MASKED) {
+            const Material m = materials[p.material];
+            for (int l = 0; l < VEC; ++l) {
+                if (LANE(wins, l) && px0 + l < width &&
+                    surface_base_color(&p, px0 + l, py, m, uvs, triangles, tx).w < m.alpha_cutoff)
+                    LANE(wins, l) = 0;
+            }
+        }
+        best_depth = select(best_depth, depth, wins);
+        best_tri = select(best_tri, (intV)p.tri, wins);
+        best_prim = select(best_prim, (intV)pi, wins);
     }
-    if (px < width && py < height) {
-        vis_depth[py * width + px] = best_depth;
-        vis_prim[py * width + px] = best_prim;
+    if (py >= height) return;
+    for (int l = 0; l < VEC; ++l) {
+        int px = px0 + l;
+        if (px < width) {
+#if VEC == 1
+            vis_depth[py * width + px] = best_depth;
+            vis_prim[py * width + px] = best_prim;
+#else
+            vis_depth[py * width + px] = ((const float*)&best_depth)[l];
+            vis_prim[py * width + px] = ((const int*)&best_prim)[l];
+#endif
+        }
     }
 }

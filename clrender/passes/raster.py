@@ -16,7 +16,8 @@ class RasterPass(RenderPass):
     def __init__(self, device, config):
         super().__init__(device, config)
         self.tile = capabilities.tile_size_for(device.cl_device, config.tile_size)
-        self.kernel = device.program("raster.cl", defines={"TILE": self.tile}).raster_tiles
+        self.vec = capabilities.raster_vector_width(device.cl_device, self.tile)
+        self.kernel = device.program("raster.cl", defines={"TILE": self.tile, "VEC": self.vec}).raster_tiles
 
     def allocate(self, width, height):
         self.vis_depth = empty(self.queue, width * height, np.float32)
@@ -27,8 +28,8 @@ class RasterPass(RenderPass):
 
     def run(self, res):
         t = self.tile
-        gsize = (res["tiles_x"] * t, res["tiles_y"] * t)
-        self.kernel(self.queue, gsize, (t, t),
+        gsize = (res["tiles_x"] * t // self.vec, res["tiles_y"] * t)
+        self.kernel(self.queue, gsize, (t // self.vec, t),
                     res["prims"].data, res["tile_offsets"].data, res["tile_counts"].data,
                     res["tile_prims"].data, np.int32(res["tile_list_capacity"]), np.int32(res["tiles_x"]),
                     np.int32(res["width"]), np.int32(res["height"]), np.float32(res["far"]),

@@ -1,0 +1,237 @@
+"""Helpers shared by the scene loaders: world-space flattening, images, errors.
+
+Every loader turns its file into a list of `Piece`s (one per mesh instance, already in
+world space, in load order) plus materials and textures; `assemble` concatenates them
+into one `Scene` without reordering or dropping anything.
+"""
+from __future__ import annotations
+
+import io
+import os
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Callable, Optional, Sequence
+
+import numpy as np
+
+from ..camera import Camera
+from ..scene import Material, Scene, SceneError, Texture, vertex_normals
+
+__all__ = ["SceneError", "Piece", "fail", "transform_points", "transform_normals", "world_piece",
+           "assemble", "image_to_rgba", "decode_image", "load_images", "check_faces",
+           "trimesh_load", "flip_v"]
+
+
+def fail(path, message: str) -> SceneError:
+    """A SceneError whose message starts with the file name."""
+    return SceneError(f"{path}: {message}")
+
+
+@dataclass
+class Piece:
+    """One mesh instance in world space, ready to be concatenated."""
+    name: str
+    positions: np.ndarray                 # (V, 3) float64, world space
+    faces: np.ndarray                     # (T, 3) int64, local vertex indices, load order
+    material: int                         # index into the loader's material list
+    normals: Optional[np.ndarray] = None  # (V, 3) world space unit normals; None = compute
+    uvs: Optional[np.ndarray] = None      # (V, 2) glTF convention; None = zeros
+
+
+# -- transforms ---------------------------------------------------------------------------------
+def transform_points(matrix: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """Apply a 4x4 affine matrix to (N, 3) points (float64)."""
+    m = np.asarray(matrix, np.float64)
+    p = np.asarray(points, np.float64).reshape(-1, 3)
+    return p @ m[:3, :3].T + m[:3, 3]
+
+
+def normal_matrix(matrix: np.ndarray) -> np.ndarray:
+    """Inverse transpose of the upper 3x3 (pseudo-inverse when singular)."""
+    a = np.asarray(matrix, np.float64)[:3, :3]
+    try:
+        inv = np.linalg.inv(a)
+    except np.linalg.LinAlgError:
+        inv = np.linalg.pinv(a)
+    if not np.isfinite(inv).all():
+        inv = np.linalg.pinv(a)
+    return inv.T
+
+
+def transform_normals(matrix: np.ndarray, normals: np.ndarray) -> np.ndarray:
+    """Normals through the inverse-transpose, renormalized (zero-length normals stay zero)."""
+    n = np.asarray(normals, np.float64).reshape(-1, 3) @ normal_matrix(matrix).T
+    length = np.linalg.norm(n, axis=1, keepdims=True)
+    ok = length[:, 0] > 0
+    n[ok] /= length[ok]
+    return n
+
+
+def world_piece(name: str, matrix, positions, faces, material: int, normals=None, uvs=None) -> Piece:
+    """Build a Piece from local-space arrays and a local->world matrix.
+
+    A mirroring transform (negative determinant) reverses the triangle winding so that the
+    front face stays the front face (glTF 2.0 spec, "Transformations"); the face order is kept.
+    """
+    matrix = np.asarray(matrix, np.float64)
+    faces = np.asarray(faces, np.int64).reshape(-1, 3)
+    if np.linalg.det(matrix[:3, :3]) < 0:
+        faces = faces[:, [0, 2, 1]]
+    world = transform_points(matrix, positions)
+    wn = None if normals is None else transform_normals(matrix, normals)
+    return Piece(name, world, faces, int(material), wn, uvs)
+
+
+# -- assembling ----------------------------------------------------------------------------------
+def assemble(pieces: Sequence[Piece], materials: list[Material], textures: list[Texture],
+             source: str, camera: Optional[Camera] = None, settings: Optional[dict] = None) -> Scene:
+    """Concatenate pieces (in order) into one Scene; normals are computed where a piece has none."""
+    if not materials:
+        materials = [Material()]
+    positions, normals, uvs, triangles, tri_mat, tri_mesh, tri_face = [], [], [], [], [], [], []
+    names = []
+    offset = 0
+    for k, piece in enumerate(pieces):
+        pos = np.asarray(piece.positions, np.float64).reshape(-1, 3)
+        faces = np.asarray(piece.faces, np.int64).reshape(-1, 3)
+        nv, nt = len(pos), len(faces)
+        if nt and (faces.min() < 0 or faces.max() >= nv):
+            raise fail(source, f"mesh {piece.name!r}: a vertex index is out of range ({nv} vertices)")
+        if piece.normals is None:
+            nrm = vertex_normals(pos, faces)
+        else:
+            nrm = np.asarray(piece.normals).reshape(-1, 3)
+        uv = np.zeros((nv, 2), np.float32) if piece.uvs is None else np.asarray(piece.uvs).reshape(-1, 2)
+        if len(nrm) != nv or len(uv) != nv:
+            raise fail(source, f"mesh {piece.name!r}: normals/uvs do not have one entry per vertex ({nv})")
+        positions.append(pos.astype(np.float32))
+        normals.append(nrm.astype(np.float32))
+        uvs.append(uv.astype(np.float32))
+        triangles.append(faces + offset)
+        tri_mat.append(np.full(nt, piece.material, np.int32))
+        tri_mesh.append(np.full(nt, k, np.int32))
+        tri_face.append(np.arange(nt, dtype=np.int32))
+        names.append(piece.name)
+        offset += nv
+    if offset > np.iinfo(np.int32).max:
+        raise fail(source, f"too many vertices ({offset}) for 32-bit indices")
+
+    def cat(parts, shape, dtype):
+        return np.concatenate(parts).astype(dtype) if parts else np.zeros(shape, dtype)
+
+    return Scene(
+        positions=cat(positions, (0, 3), np.float32),
+        normals=cat(normals, (0, 3), np.float32),
+        uvs=cat(uvs, (0, 2), np.float32),
+        triangles=cat(triangles, (0, 3), np.int32),
+        triangle_material=cat(tri_mat, (0,), np.int32),
+        materials=list(materials),
+        textures=list(textures),
+        mesh_names=names,
+        triangle_mesh=cat(tri_mesh, (0,), np.int32),
+        triangle_face=cat(tri_face, (0,), np.int32),
+        camera=camera,
+        source=str(source),
+        settings=dict(settings or {}),
+    )
+
+
+def check_faces(faces: np.ndarray, vertex_count: int, where, what: str) -> None:
+    """SceneError when a face references a vertex that does not exist."""
+    faces = np.asarray(faces)
+    if faces.size == 0:
+        return
+    bad = (faces < 0) | (faces >= vertex_count)
+    if bad.any():
+        row = int(np.argmax(bad.any(axis=1)))
+        raise fail(where, f"{what}: face {row} has a vertex index out of range "
+                          f"{faces[row].tolist()} (there are {vertex_count} vertices)")
+
+
+def flip_v(uv: np.ndarray) -> np.ndarray:
+    """OpenGL-style uv (v up, origin bottom-left) -> glTF convention (v down, origin top-left)."""
+    out = np.array(uv, np.float64).reshape(-1, 2)
+    out[:, 1] = 1.0 - out[:, 1]
+    return out
+
+
+# -- images ----------------------------------------------------------------------------------------
+def image_to_rgba(img) -> np.ndarray:
+    """A PIL image -> (H, W, 4) uint8, row 0 at the top. 16-bit and float modes are scaled down."""
+    from PIL import Image
+
+    mode = img.mode
+    if mode in ("I;16", "I;16B", "I;16L", "I;16N"):
+        a = (np.asarray(img, dtype=np.uint16) >> 8).astype(np.uint8)
+        img = Image.fromarray(a, "L")
+    elif mode == "I":
+        a = np.asarray(img, dtype=np.int64)
+        scale = 257.0 if a.max(initial=0) > 255 else 1.0
+        img = Image.fromarray(np.clip(a / scale, 0, 255).astype(np.uint8), "L")
+    elif mode == "F":
+        a = np.asarray(img, dtype=np.float64)
+        img = Image.fromarray(np.clip(a * 255.0 + 0.5, 0, 255).astype(np.uint8), "L")
+    if img.mode != "RGBA":
+        img = img.convert("RGBA")
+    return np.array(img, dtype=np.uint8)
+
+
+def decode_image(data, where: str) -> np.ndarray:
+    """Decode image bytes or a file path to RGBA8; SceneError naming `where` on failure."""
+    from PIL import Image, UnidentifiedImageError
+
+    try:
+        if isinstance(data, (str, os.PathLike)):
+            if not Path(data).is_file():
+                raise SceneError(f"{where}: texture file not found: {data}")
+            with Image.open(data) as img:
+                img.load()
+                return image_to_rgba(img)
+        with Image.open(io.BytesIO(bytes(data))) as img:
+            img.load()
+            return image_to_rgba(img)
+    except SceneError:
+        raise
+    except (UnidentifiedImageError, OSError, ValueError, SyntaxError) as exc:
+        raise SceneError(f"{where}: cannot decode image ({type(exc).__name__}: {exc})") from None
+
+
+def load_images(jobs: Sequence[Callable[[], np.ndarray]]) -> list[np.ndarray]:
+    """Run image-decoding jobs in a thread pool (PIL releases the GIL while decoding)."""
+    if len(jobs) <= 1:
+        return [job() for job in jobs]
+    workers = min(len(jobs), max(1, (os.cpu_count() or 2)), 16)
+    with ThreadPoolExecutor(max_workers=workers) as pool:
+        return list(pool.map(lambda job: job(), jobs))
+
+
+# -- trimesh -----------------------------------------------------------------------------------------
+def trimesh_load(path, **kwargs):
+    """`trimesh.load(..., force='scene')` with every failure turned into a SceneError naming `path`."""
+    import logging
+
+    import trimesh
+
+    where = kwargs.pop("where", path)
+    logging.getLogger("trimesh").setLevel(logging.ERROR)
+    try:
+        return trimesh.load(path, force="scene", **kwargs)
+    except SceneError:
+        raise
+    except Exception as exc:  # trimesh raises anything from KeyError to AssertionError
+        raise fail(where, f"cannot parse file ({type(exc).__name__}: {exc})") from None
+
+
+def trimesh_vertex_normals(geom) -> Optional[np.ndarray]:
+    """The vertex normals stored in the file, or None when trimesh would have to compute them.
+
+    trimesh keeps normals read from a file in its cache; reading `geom.vertex_normals` when they
+    are absent would silently compute (angle-weighted) ones, which we do not want.
+    """
+    cache = getattr(geom, "_cache", None)
+    if cache is not None and "vertex_normals" in cache:
+        n = np.asarray(cache["vertex_normals"], np.float64)
+        if n.shape == np.shape(geom.vertices):
+            return n
+    return None
