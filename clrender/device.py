@@ -162,6 +162,14 @@ class Device:
             Device._programs[key] = prog
         return prog
 
+    def kernel(self, filename: str, name: str, defines: Optional[dict] = None) -> cl.Kernel:
+        """One shared kernel object per (program, name): retrieving kernels is not free."""
+        prog = self.program(filename, defines)
+        cache = prog.__dict__.setdefault("_clrender_kernels", {})
+        if name not in cache:
+            cache[name] = cl.Kernel(prog, name)
+        return cache[name]
+
 
 @lru_cache(maxsize=None)
 def _device_for(device_id: str, platform: str, name: str) -> Device:

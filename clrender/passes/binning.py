@@ -14,9 +14,8 @@ class BinningPass(RenderPass):
     def __init__(self, device, config):
         super().__init__(device, config)
         self.tile = config.tile_size
-        program = device.program("binning.cl", defines={"TILE": self.tile})
-        self.count_kernel = program.bin_count
-        self.fill_kernel = program.bin_fill
+        self.count_kernel = device.kernel("binning.cl", "bin_count", {"TILE": self.tile})
+        self.fill_kernel = device.kernel("binning.cl", "bin_fill", {"TILE": self.tile})
         self.scan = scan_for(device)
         self.list_capacity = 0
         self.total = zeros(self.queue, 1, np.int32)

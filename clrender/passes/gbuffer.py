@@ -15,7 +15,7 @@ class GBufferPass(RenderPass):
 
     def __init__(self, device, config):
         super().__init__(device, config)
-        self.kernel = device.program("gbuffer.cl", defines=layout.kernel_defines()).gbuffer_resolve
+        self.kernel = device.kernel("gbuffer.cl", "gbuffer_resolve", layout.kernel_defines())
 
     def allocate(self, width, height):
         self.gbuffer = empty(self.queue, len(layout.PLANES) * width * height, np.uint32)

@@ -17,7 +17,7 @@ class RasterPass(RenderPass):
         super().__init__(device, config)
         self.tile = capabilities.tile_size_for(device.cl_device, config.tile_size)
         self.vec = capabilities.raster_vector_width(device.cl_device, self.tile)
-        self.kernel = device.program("raster.cl", defines={"TILE": self.tile, "VEC": self.vec}).raster_tiles
+        self.kernel = device.kernel("raster.cl", "raster_tiles", {"TILE": self.tile, "VEC": self.vec})
 
     def allocate(self, width, height):
         self.vis_depth = empty(self.queue, width * height, np.float32)

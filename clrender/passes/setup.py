@@ -14,9 +14,8 @@ class SetupPass(RenderPass):
 
     def __init__(self, device, config):
         super().__init__(device, config)
-        program = device.program("setup.cl")
-        self.count_kernel = program.setup_count
-        self.emit_kernel = program.setup_emit
+        self.count_kernel = device.kernel("setup.cl", "setup_count")
+        self.emit_kernel = device.kernel("setup.cl", "setup_emit")
         self.scan = scan_for(device)
         self.n_tris = -1
         self.capacity = 0

@@ -1,0 +1,258 @@
+"""OBJ (+MTL), PLY and STL -> Scene, through trimesh.
+
+trimesh is called with `process=False` (no vertex merging, no reordering, no NaN removal) and the
+default `maintain_order=False`: in trimesh 5.2, `maintain_order=True` makes the OBJ loader drop
+uvs and normals. With `group_material=True` (the default) an OBJ becomes one geometry per
+`usemtl` material with its faces in file order; geometries are ordered by the first appearance of
+their material in the file. trimesh stores OBJ/PLY uvs as written (v up, OpenGL style); they are
+converted to the glTF convention (v' = 1 - v). Materials are read from the MTL file here (trimesh
+rounds Kd to 8 bits and ignores missing texture files). OBJ/PLY/STL materials are double-sided.
+
+Relative (negative) OBJ indices are resolved by trimesh against the end of the whole vertex list,
+which is only right when every vertex precedes the faces that use it.
+"""
+from __future__ import annotations
+
+import re
+import warnings
+from pathlib import Path
+from typing import Optional
+
+import numpy as np
+
+from ..scene import Material, Scene, Texture
+from .common import (Piece, assemble, check_faces, decode_image, fail, flip_v, load_images,
+                     trimesh_load, trimesh_vertex_normals, world_piece)
+
+# map_Kd options and how many arguments each takes (-o/-s/-t take 1 to 3 numbers)
+_MAP_OPTIONS = {"-blendu": 1, "-blendv": 1, "-bm": 1, "-boost": 1, "-cc": 1, "-clamp": 1, "-imfchan": 1,
+                "-mm": 2, "-texres": 1, "-type": 1, "-o": 3, "-s": 3, "-t": 3}
+
+
+def _read_text(path: Path) -> str:
+    try:
+        return path.read_bytes().decode("utf-8", errors="replace")
+    except OSError as exc:
+        raise fail(path, f"cannot read file ({exc.strerror or exc})") from None
+
+
+def _trimesh_geometries(tm_scene):
+    """(graph node, matrix, geometry name, geometry) for every triangle mesh, in trimesh's order."""
+    import trimesh
+
+    out = []
+    for gnode in tm_scene.graph.nodes_geometry:
+        matrix, gname = tm_scene.graph[gnode]
+        geom = tm_scene.geometry[gname]
+        if isinstance(geom, trimesh.Trimesh):
+            out.append((gnode, np.asarray(matrix, np.float64), gname, geom))
+    return out
+
+
+def _uv(geom) -> Optional[np.ndarray]:
+    uv = getattr(geom.visual, "uv", None)
+    if uv is None or len(uv) != len(geom.vertices):
+        return None
+    return flip_v(uv)
+
+
+# -- OBJ -----------------------------------------------------------------------------------------------
+def _check_obj_indices(path: Path, text: str) -> None:
+    counts = {key: len(re.findall(rf"^{key}[ \t]", text, re.M)) for key in ("v", "vt", "vn")}
+    body = " ".join(re.findall(r"^f[ \t]+([^\n]*)", text, re.M))
+    if not body:
+        return
+    patterns = {
+        "v": r"(?:^|\s)(-?\d+)",
+        "vt": r"(?:^|\s)-?\d+/(-?\d+)",
+        "vn": r"(?:^|\s)-?\d+/-?\d*/(-?\d+)",
+    }
+    for key, pattern in patterns.items():
+        found = re.findall(pattern, body)
+        if not found:
+            continue
+        idx = np.array(found, dtype=np.int64)
+        n = counts[key]
+        bad = (idx == 0) | (idx > n) | (idx < -n)
+        if bad.any():
+            value = int(idx[np.argmax(bad)])
+            raise fail(path, f"face {key} index {value} out of range (the file has {n} '{key}' lines; "
+                             f"OBJ indices start at 1)")
+
+
+def _parse_map(args: list[str]) -> tuple[Optional[str], bool]:
+    """map_Kd arguments -> (file name, clamp)."""
+    clamp = False
+    i = 0
+    while i < len(args) and args[i].startswith("-") and args[i].lower() in _MAP_OPTIONS:
+        opt = args[i].lower()
+        n = _MAP_OPTIONS[opt]
+        if opt == "-clamp" and i + 1 < len(args):
+            clamp = args[i + 1].lower() == "on"
+        if opt in ("-o", "-s", "-t"):  # 1 to 3 numbers
+            j = i + 1
+            while j < len(args) and j <= i + 3 and re.fullmatch(r"[-+]?[\d.eE+-]+", args[j]):
+                j += 1
+            i = j
+        else:
+            i += 1 + n
+    name = " ".join(args[i:]).strip()
+    return (name or None), clamp
+
+
+def _parse_mtl(file: Path, where: Path) -> dict[str, dict]:
+    materials: dict[str, dict] = {}
+    current = None
+    for lineno, raw in enumerate(_read_text(file).splitlines(), 1):
+        line = raw.split("#", 1)[0].strip()
+        if not line:
+            continue
+        parts = line.split()
+        key, args = parts[0].lower(), parts[1:]
+        if key == "newmtl":
+            current = materials.setdefault(" ".join(args), {})
+            continue
+        if current is None:
+            continue
+        try:
+            if key in ("kd", "ks") and args and args[0].lower() not in ("spectral", "xyz"):
+                values = [float(a) for a in args[:3]]
+                current[key] = tuple(values * 3)[:3] if len(values) == 1 else tuple(values)
+            elif key == "ns" and args:
+                current["ns"] = float(args[0])
+            elif key == "d" and args:
+                current["d"] = float(args[-1])
+            elif key == "tr" and args:
+                current["d"] = 1.0 - float(args[0])
+            elif key == "map_kd":
+                name, clamp = _parse_map(args)
+                if name:
+                    current["map_kd"] = (name.replace("\\", "/"), clamp)
+        except ValueError:
+            raise fail(file, f"line {lineno}: cannot parse {raw.strip()!r}") from None
+    return materials
+
+
+def _obj_materials(path: Path, text: str):
+    """MTL materials as clrender Materials: (name -> index, materials, textures)."""
+    libs = re.findall(r"^mtllib[ \t]+([^\n]+?)[ \t]*$", text, re.M)
+    parsed: dict[str, dict] = {}
+    mtl_dirs: dict[str, Path] = {}
+    for lib in libs:
+        file = path.parent / lib.strip().replace("\\", "/")
+        if not file.is_file():
+            raise fail(path, f"material library not found: {file}")
+        for name, props in _parse_mtl(file, path).items():
+            parsed.setdefault(name, props)
+            mtl_dirs.setdefault(name, file.parent)
+    index: dict[str, int] = {}
+    materials: list[Material] = []
+    slots: dict[tuple, int] = {}
+    jobs, tex_names, wraps = [], [], []
+    for name, props in parsed.items():
+        tex = -1
+        if "map_kd" in props:
+            rel, clamp = props["map_kd"]
+            file = (mtl_dirs[name] / rel)
+            if not file.is_file():
+                raise fail(path, f"texture file not found: {file} (map_Kd of material {name!r})")
+            key = (str(file.resolve()), clamp)
+            if key not in slots:
+                slots[key] = len(jobs)
+                jobs.append(lambda file=file: decode_image(file, str(path)))
+                tex_names.append(file.name)
+                wraps.append("clamp" if clamp else "repeat")
+            tex = slots[key]
+        kd = props.get("kd", (1.0, 1.0, 1.0))
+        kw = {}
+        if "ks" in props:
+            kw["specular_intensity"] = float(np.mean(props["ks"]))
+        if "ns" in props:
+            kw["specular_power"] = float(np.clip(props["ns"], 1.0, 2048.0))
+        index[name] = len(materials)
+        materials.append(Material(name=name, base_color=(*kd, props.get("d", 1.0)), base_color_texture=tex,
+                                  double_sided=True, **kw))
+    pixels = load_images(jobs)
+    textures = [Texture(n, rgba, w, w, srgb=True) for n, rgba, w in zip(tex_names, pixels, wraps)]
+    return index, materials, textures
+
+
+def load_obj(path) -> Scene:
+    path = Path(path)
+    text = _read_text(path)
+    _check_obj_indices(path, text)
+    index, materials, textures = _obj_materials(path, text)
+    first_use = {}
+    for name in re.findall(r"^usemtl[ \t]+([^\n]*?)[ \t]*$", text, re.M):
+        first_use.setdefault(name, len(first_use))
+    unknown = sorted(set(first_use) - set(index))
+    if unknown:
+        warnings.warn(f"{path}: usemtl names not defined in any material library: {unknown}", stacklevel=2)
+
+    tm_scene = trimesh_load(str(path), process=False, file_type="obj")
+    geoms = _trimesh_geometries(tm_scene)
+    default = None
+    keyed = []
+    for rank, (gnode, matrix, gname, geom) in enumerate(reversed(geoms)):
+        mat_name = getattr(getattr(geom.visual, "material", None), "name", None)
+        if mat_name not in index and gname in first_use:
+            mat_name = gname
+        if mat_name in index:
+            mat = index[mat_name]
+        else:
+            if default is None:
+                default = len(materials)
+                materials.append(Material(name="default", double_sided=True))
+            mat = default
+        order = first_use.get(mat_name, -1)
+        keyed.append(((order, rank), (gnode, matrix, gname, geom, mat)))
+    keyed.sort(key=lambda item: item[0])
+
+    pieces = []
+    for _, (gnode, matrix, gname, geom, mat) in keyed:
+        faces = np.asarray(geom.faces, np.int64)
+        check_faces(faces, len(geom.vertices), path, f"geometry {gname!r}")
+        pieces.append(world_piece(f"{gnode}/{gname}", matrix, geom.vertices, faces, mat,
+                                  trimesh_vertex_normals(geom), _uv(geom)))
+    return assemble(pieces, materials, textures, str(path))
+
+
+# -- PLY / STL ------------------------------------------------------------------------------------------
+def _ply_texture(path: Path) -> Optional[Path]:
+    with open(path, "rb") as fh:
+        head = fh.read(65536)
+    end = head.find(b"end_header")
+    header = head[: end if end >= 0 else len(head)].decode("latin-1")
+    match = re.search(r"^comment[ \t]+TextureFile[ \t]+([^\r\n]+?)[ \t]*\r?$", header, re.M | re.I)
+    if not match:
+        return None
+    file = path.parent / match.group(1).replace("\\", "/")
+    if not file.is_file():
+        raise fail(path, f"texture file not found: {file} (comment TextureFile)")
+    return file
+
+
+def _load_simple(path: Path, file_type: str, texture_file: Optional[Path] = None) -> Scene:
+    tm_scene = trimesh_load(str(path), process=False, file_type=file_type)
+    textures = []
+    material = Material(name="default", double_sided=True)
+    if texture_file is not None:
+        textures.append(Texture(texture_file.name, decode_image(texture_file, str(path)), srgb=True))
+        material = Material(name=texture_file.stem, base_color_texture=0, double_sided=True)
+    pieces: list[Piece] = []
+    for gnode, matrix, gname, geom in sorted(_trimesh_geometries(tm_scene), key=lambda g: str(g[0])):
+        faces = np.asarray(geom.faces, np.int64)
+        check_faces(faces, len(geom.vertices), path, f"geometry {gname!r}")
+        pieces.append(world_piece(f"{gnode}/{gname}", matrix, geom.vertices, faces, 0,
+                                  trimesh_vertex_normals(geom), _uv(geom)))
+    return assemble(pieces, [material], textures, str(path))
+
+
+def load_ply(path) -> Scene:
+    path = Path(path)
+    return _load_simple(path, "ply", _ply_texture(path))
+
+
+def load_stl(path) -> Scene:
+    """STL stores no vertex normals: flat, area-weighted normals come from the (unmerged) vertices."""
+    return _load_simple(Path(path), "stl")

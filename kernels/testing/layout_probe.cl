@@ -1,0 +1,38 @@
+/* layout_probe.cl: test-only kernels. Reports struct sizes/offsets as the device compiler
+ * sees them, and runs the G-buffer pack functions on given inputs, so tests can compare
+ * them with clrender/structs.py and the NumPy codecs in clrender/gbuffer.py.
+ * Work-groups: 1-D, any size. */
+#include "../structs.h"
+#include "../gbuffer.h"
+
+#define OFF(T, f) ((int)(size_t)&(((T*)0)->f))
+
+kernel void struct_layout(global int* out)
+{
+    if (get_global_id(0) != 0) return;
+    int i = 0;
+    out[i++] = sizeof(Prim);     out[i++] = OFF(Prim, x);     out[i++] = OFF(Prim, tri);
+    out[i++] = OFF(Prim, y);     out[i++] = OFF(Prim, flags); out[i++] = OFF(Prim, inv_w);
+    out[i++] = OFF(Prim, material); out[i++] = OFF(Prim, bary1); out[i++] = OFF(Prim, bary2);
+    out[i++] = OFF(Prim, area);
+    out[i++] = sizeof(Material); out[i++] = OFF(Material, base_color); out[i++] = OFF(Material, texture);
+    out[i++] = OFF(Material, spec_intensity); out[i++] = OFF(Material, spec_power);
+    out[i++] = OFF(Material, alpha_cutoff); out[i++] = OFF(Material, flags); out[i++] = OFF(Material, pad);
+    out[i++] = sizeof(TexInfo);  out[i++] = OFF(TexInfo, first_level); out[i++] = OFF(TexInfo, levels);
+    out[i++] = OFF(TexInfo, wrap_s); out[i++] = OFF(TexInfo, wrap_t);
+    out[i++] = sizeof(TexLevel); out[i++] = OFF(TexLevel, offset); out[i++] = OFF(TexLevel, width);
+    out[i++] = OFF(TexLevel, height); out[i++] = OFF(TexLevel, pad);
+}
+
+/* in: float4 per item (x, y, z, w); out: uint4 per item: srgb8x3(xyz), oct12x2(xyz),
+ * log2unorm8(w), half2(x, y); out2: pack_float2((x, y), 16) — the report's packing. */
+kernel void pack_probe(global const float4* in, constant float* srgb_bounds, int n,
+                       global uint4* out, global uint* out2)
+{
+    int i = get_global_id(0);
+    if (i >= n) return;
+    float4 v = in[i];
+    out[i] = (uint4)(pack_srgb8x3(v.xyz, srgb_bounds), pack_oct12x2(v.xyz), pack_log2unorm8(v.w),
+                     pack_half2(v.xy));
+    out2[i] = pack_float2(v.xy, 16);
+}
