@@ -49,12 +49,12 @@ def tile_size_for(dev: cl.Device, requested: int) -> int:
     return requested
 
 
-def raster_vector_width(dev: cl.Device, tile: int) -> int:
-    """Pixels per work-item in the fine raster: 1 on GPUs (a pixel per lane); on CPUs an
-    explicit vector as wide as the SIMD unit, since PoCL cannot vectorize across work-items
-    through the raster's data-dependent prim loop. CLRENDER_RASTER_VEC overrides (tests)."""
+def pixel_vector_width(dev: cl.Device) -> int:
+    """Pixels per work-item in per-pixel kernels (kernels/vec.h): 1 on GPUs (a pixel per
+    lane); on CPUs an explicit vector as wide as the SIMD unit, since PoCL cannot vectorize
+    across work-items through loops and library calls. CLRENDER_VEC overrides (tests)."""
     import os
-    forced = os.environ.get("CLRENDER_RASTER_VEC")
+    forced = os.environ.get("CLRENDER_VEC")
     if forced:
         width = int(forced)
     elif is_cpu(dev):
@@ -62,8 +62,13 @@ def raster_vector_width(dev: cl.Device, tile: int) -> int:
     else:
         width = 1
     if width not in (1, 4, 8, 16):
-        raise ValueError(f"raster vector width must be 1, 4, 8 or 16, got {width}")
-    return min(width, tile)
+        raise ValueError(f"pixel vector width must be 1, 4, 8 or 16, got {width}")
+    return width
+
+
+def raster_vector_width(dev: cl.Device, tile: int) -> int:
+    """A raster work-item's pixel run must fit in its tile row."""
+    return min(pixel_vector_width(dev), tile)
 
 
 def build_options(dev: cl.Device) -> list[str]:

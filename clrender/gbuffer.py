@@ -74,15 +74,6 @@ def srgb_to_linear_lut() -> np.ndarray:
     return _SRGB_TO_LINEAR
 
 
-def srgb8_bounds() -> np.ndarray:
-    """256 float32 thresholds: linear values halfway (in sRGB) between consecutive codes; the
-    kernel's encoder counts thresholds below x. The last one is +inf (a 255-padded table)."""
-    mid = (np.arange(256, dtype=np.float64) + 0.5) / 255.0
-    lin = np.where(mid <= 0.04045, mid / 12.92, ((mid + 0.055) / 1.055) ** 2.4)
-    lin[255] = np.inf
-    return lin.astype(np.float32)
-
-
 def linear_to_srgb8(x: np.ndarray) -> np.ndarray:
     x = np.clip(np.asarray(x, np.float64), 0.0, 1.0)
     s = np.where(x <= 0.0031308, x * 12.92, 1.055 * x ** (1 / 2.4) - 0.055)

@@ -27,7 +27,7 @@ class Pipeline:
 
     def _check_wiring(self):
         produced = {"positions", "normals", "uvs", "triangles", "tri_material", "materials", "texels",
-                    "srgb_lut", "srgb_bounds", "tex_infos", "tex_levels", "n_tris", "view_proj", "prev_view_proj",
+                    "srgb_lut", "tex_infos", "tex_levels", "n_tris", "view_proj", "prev_view_proj",
                     "near", "far", "width", "height", "has_prev", "tiles_x", "tiles_y"}
         for p in self.passes:
             missing = set(p.inputs) - produced

@@ -13,7 +13,7 @@ import pyopencl.array as cla
 from PIL import Image
 
 from . import structs
-from .gbuffer import linear_to_srgb8, srgb8_bounds, srgb_to_linear_lut
+from .gbuffer import linear_to_srgb8, srgb_to_linear_lut
 from .passes.base import Resources
 from .scene import Scene, Texture
 
@@ -105,7 +105,6 @@ def upload(scene: Scene, device) -> Resources:
         "tex_infos": cla.to_device(q, infos),
         "tex_levels": cla.to_device(q, levels),
         "srgb_lut": cla.to_device(q, srgb_to_linear_lut()),
-        "srgb_bounds": cla.to_device(q, srgb8_bounds()),
     }, values={"n_tris": scene.triangle_count})
     for k in [k for k, v in _UPLOADS.items() if v[0]() is None]:
         del _UPLOADS[k]

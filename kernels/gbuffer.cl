@@ -1,88 +1,284 @@
 /* gbuffer.cl: resolve the visibility buffer into the packed G-buffer.
  *
- * Algorithm: one work-item per pixel. The winning prim's edge functions at the pixel center
- * (and its right and lower neighbours) give perspective-correct barycentrics in the input
- * triangle and their screen derivatives; from them: the interpolated world normal (flipped on
- * visible back faces), UVs and a trilinear base-color sample (LOD from the derivatives),
- * the material's specular terms, linear depth = view depth / far, and the screen-space motion
- * against the previous frame's view-projection. Everything is packed per the layout table
- * (clrender/gbuffer.py, kernels/gbuffer.h).
+ * Algorithm: each work-item owns VEC consecutive pixels (see vec.h). Per lane it gathers the
+ * winning prim; then, as VEC-wide vector math: the prim's edge functions at the pixel center
+ * and its right and lower neighbours give perspective-correct barycentrics in the input
+ * triangle and their screen derivatives; from them the interpolated world normal (flipped
+ * on visible back faces), UVs and a trilinear base-color sample (LOD from the derivatives,
+ * texels gathered per lane), the material's specular terms, linear depth = view depth / far,
+ * and the motion against the previous frame's view-projection. Everything is packed per
+ * the layout table (clrender/gbuffer.py, kernels/gbuffer.h).
  *
  * Buffers: vis_depth float[W·H], vis_prim int[W·H]; prims Prim[*]; scene positions/normals
  *          float[3V], uvs float[2V], triangles int[3T], materials Material[M]; textures;
- *          prev_view_proj float[16]. out: gbuffer uint[GB_PLANES][H][W].
- * Work-groups: 1-D over pixels, any size; no barriers.
+ *          prev_view_proj float[16]. out: gbuffer uint[GB_PLANES][H·W].
+ * Work-groups: 1-D, work-item i covers pixels [i·VEC, i·VEC + VEC); no barriers.
  */
 #pragma OPENCL FP_CONTRACT OFF
-#include "surface.h"
+#include "structs.h"
 #include "gbuffer.h"
+#include "vec.h"
 
-static inline float3 vload_vec3(global const float* a, int i) { return vload3(i, a); }
+typedef struct { floatV x, y, z; } vec3V;
+
+static inline floatV dot3V(vec3V a, vec3V b) { return a.x * b.x + a.y * b.y + a.z * b.z; }
+
+/* Gathers a float3 attribute of vertex idx[l] for every lane. */
+static inline vec3V gather3(global const float* a, intV idx)
+{
+    vec3V r;
+    for (int l = 0; l < VEC; ++l) {
+        int i = LANE_I(idx, l);
+        LANE_F(r.x, l) = a[3 * i]; LANE_F(r.y, l) = a[3 * i + 1]; LANE_F(r.z, l) = a[3 * i + 2];
+    }
+    return r;
+}
+
+static inline vec3V interp3(vec3V a, vec3V b, vec3V c, floatV b0, floatV b1, floatV b2)
+{
+    vec3V r = { b0 * a.x + b1 * b.x + b2 * c.x, b0 * a.y + b1 * b.y + b2 * c.y, b0 * a.z + b1 * b.z + b2 * c.z };
+    return r;
+}
+
+/* Texture coordinate folded into one period: repeat [0,1), mirror/clamp [0,1]. */
+static inline floatV foldV(floatV u, intV mode)
+{
+    u = clamp(u, (floatV)-1.0e9f, (floatV)1.0e9f);
+    floatV rep = u - floor(u);
+    floatV t = u - 2.0f * floor(u * 0.5f);
+    floatV mir = select(t, 2.0f - t, t > 1.0f);
+    floatV clm = clamp(u, (floatV)0.0f, (floatV)1.0f);
+    return select(select(clm, mir, mode == WRAP_MIRROR), rep, mode == WRAP_REPEAT);
+}
+
+static inline intV wrap_edgeV(intV i, intV size, intV mode)
+{
+    intV rep = select(select(i, (intV)0, i >= size), size - 1, i < 0);
+    return select(clamp(i, (intV)0, size - 1), rep, mode == WRAP_REPEAT);
+}
+
+typedef struct { floatV r, g, b, a; } rgbaV;
+
+/* Bilinear sample of per-lane mip levels (offset/width/height) at folded coordinates. */
+static rgbaV bilinearV(global const uint* texels, constant float* lut, intV active,
+                       intV offset, intV width, intV height, intV wrap_s, intV wrap_t, floatV u, floatV v)
+{
+    floatV fx = foldV(u, wrap_s) * convert_floatV(width) - 0.5f;
+    floatV fy = foldV(v, wrap_t) * convert_floatV(height) - 0.5f;
+    intV x0 = convert_intV(fx + 1.0f) - 1, y0 = convert_intV(fy + 1.0f) - 1;   /* floor, fx >= -0.5 */
+    floatV ax = fx - convert_floatV(x0), ay = fy - convert_floatV(y0);
+    intV xa = wrap_edgeV(x0, width, wrap_s), xb = wrap_edgeV(x0 + 1, width, wrap_s);
+    intV ya = wrap_edgeV(y0, height, wrap_t), yb = wrap_edgeV(y0 + 1, height, wrap_t);
+    intV idx[4] = { offset + ya * width + xa, offset + ya * width + xb,
+                    offset + yb * width + xa, offset + yb * width + xb };
+    rgbaV t[4];
+    for (int k = 0; k < 4; ++k) {
+        for (int l = 0; l < VEC; ++l) {
+            uint w = LANE_I(active, l) ? texels[LANE_I(idx[k], l)] : 0u;
+            LANE_F(t[k].r, l) = lut[w & 255u];
+            LANE_F(t[k].g, l) = lut[(w >> 8) & 255u];
+            LANE_F(t[k].b, l) = lut[(w >> 16) & 255u];
+            LANE_F(t[k].a, l) = (float)(w >> 24) * (1.0f / 255.0f);
+        }
+    }
+    rgbaV r;
+#define BILERP(c) { floatV top = t[0].c + (t[1].c - t[0].c) * ax, bot = t[2].c + (t[3].c - t[2].c) * ax; \
+                    r.c = top + (bot - top) * ay; }
+    BILERP(r) BILERP(g) BILERP(b) BILERP(a)
+#undef BILERP
+    return r;
+}
+
+/* Per-lane mip level record `level` of texture `tex`. */
+static inline void gather_level(global const TexLevel* levels, intV level, intV* offset, intV* w, intV* h)
+{
+    for (int l = 0; l < VEC; ++l) {
+        TexLevel lv = levels[LANE_I(level, l)];
+        LANE_I(*offset, l) = lv.offset; LANE_I(*w, l) = lv.width; LANE_I(*h, l) = lv.height;
+    }
+}
+
+static inline floatV fast_log2V(floatV x)   /* exponent + linear mantissa, as texture units do */
+{
+    intV bits = as_intV(x);
+    return convert_floatV((bits >> 23) - 127) + (as_floatV((bits & 0x007fffff) | 0x3f800000) - 1.0f);
+}
 
 kernel void gbuffer_resolve(global const float* vis_depth, global const int* vis_prim,
                             global const Prim* prims, int width, int height, float far,
                             global const float* positions, global const float* normals,
                             global const float* uvs, global const int* triangles,
                             global const Material* materials,
-                            global const uint* texels, constant float* srgb_lut, constant float* srgb_bounds,
+                            global const uint* texels, constant float* srgb_lut,
                             global const TexInfo* tex_infos, global const TexLevel* tex_levels,
                             global const float* prev_view_proj, int has_prev,
                             global uint* gbuffer)
 {
-    const int pix = get_global_id(0);
     const int npix = width * height;
-    if (pix >= npix) return;
-    const int px = pix % width, py = pix / width;
-    uint planes[GB_PLANES];
-    for (int i = 0; i < GB_PLANES; ++i) planes[i] = 0u;
+    const int pix0 = get_global_id(0) * VEC;
+    if (pix0 >= npix) return;
 
-    const int prim_index = vis_prim[pix];
-    if (prim_index < 0) {
-        GB_PUT(planes, LINEAR_DEPTH, as_uint(INFINITY));
-        GB_PUT(planes, TRIANGLE_ID, 0xffffffffu);
-    } else {
-        const Prim p = prims[prim_index];
-        const Material m = materials[p.material];
-        const Textures tx = { texels, srgb_lut, tex_infos, tex_levels };
-        float3 b, b_dx, b_dy;
-        prim_barycentrics_with_derivatives(&p, px, py, &b, &b_dx, &b_dy);
-        const int i0 = triangles[3 * p.tri], i1 = triangles[3 * p.tri + 1], i2 = triangles[3 * p.tri + 2];
-
-        float3 n = b.x * vload_vec3(normals, i0) + b.y * vload_vec3(normals, i1) + b.z * vload_vec3(normals, i2);
-        float3 p0 = vload_vec3(positions, i0), p1 = vload_vec3(positions, i1), p2 = vload_vec3(positions, i2);
-        if (!(dot(n, n) > 1e-20f)) n = cross(p1 - p0, p2 - p0);      /* no usable vertex normal */
-        if (!(dot(n, n) > 0.0f)) n = (float3)(0.0f, 0.0f, 1.0f);
-        n = normalize(n);
-        if (p.flags & PRIM_BACKFACE) n = -n;
-
-        float4 color = vload4(0, m.base_color);
-        if (m.texture >= 0) {
-            float2 uv = interp_uv(uvs, triangles, p.tri, b);
-            float2 uv_dx = interp_uv(uvs, triangles, p.tri, b + b_dx) - uv;
-            float2 uv_dy = interp_uv(uvs, triangles, p.tri, b + b_dy) - uv;
-            color *= sample_trilinear(texels, srgb_lut, tex_infos, tex_levels, m.texture, uv, uv_dx, uv_dy);
-        }
-
-        float2 velocity = (float2)(0.0f, 0.0f);
-        if (has_prev) {
-            float3 wp = b.x * p0 + b.y * p1 + b.z * p2;
-            global const float* M = prev_view_proj;
-            float cx = M[0] * wp.x + M[1] * wp.y + M[2] * wp.z + M[3];
-            float cy = M[4] * wp.x + M[5] * wp.y + M[6] * wp.z + M[7];
-            float cw = M[12] * wp.x + M[13] * wp.y + M[14] * wp.z + M[15];
-            if (cw > 0.0f) {
-                float2 prev = (float2)((cx / cw + 1.0f) * 0.5f * (float)width, (1.0f - cy / cw) * 0.5f * (float)height);
-                velocity = (float2)((float)px + 0.5f, (float)py + 0.5f) - prev;
-            }
-        }
-
-        GB_PUT(planes, ALBEDO, pack_srgb8x3(color.xyz, srgb_bounds));
-        GB_PUT(planes, SPECULAR_INTENSITY, pack_unorm8(m.spec_intensity));
-        GB_PUT(planes, LINEAR_DEPTH, as_uint(vis_depth[pix] / far));
-        GB_PUT(planes, NORMAL, pack_oct12x2(n));
-        GB_PUT(planes, SPECULAR_POWER, pack_log2unorm8(m.spec_power));
-        GB_PUT(planes, VELOCITY, pack_half2(velocity));
-        GB_PUT(planes, TRIANGLE_ID, (uint)p.tri);
+    /* Gather the winning prims. Background lanes get a harmless dummy (prim fields 0). */
+    intV px, py, tri = 0, flags = 0, mat = 0, fg;
+    longV X0 = 0, X1 = 0, X2 = 0, Y0 = 0, Y1 = 0, Y2 = 0;
+    floatV iw0 = 0, iw1 = 0, iw2 = 0, b10 = 0, b11 = 0, b12 = 0, b20 = 0, b21 = 0, b22 = 0, depth;
+    int cx = pix0 % width, cy = pix0 / width;
+    for (int l = 0; l < VEC; ++l) {
+        int pix = pix0 + l;
+        int pi = pix < npix ? vis_prim[pix] : -1;
+        LANE_I(px, l) = cx; LANE_I(py, l) = cy;
+        if (++cx == width) { cx = 0; ++cy; }
+        LANE_I(fg, l) = pi >= 0 ? -1 : 0;
+        LANE_F(depth, l) = pix < npix ? vis_depth[pix] : INFINITY;
+        if (pi < 0) continue;
+        global const Prim* p = prims + pi;
+        LANE_L(X0, l) = p->x[0]; LANE_L(X1, l) = p->x[1]; LANE_L(X2, l) = p->x[2];
+        LANE_L(Y0, l) = p->y[0]; LANE_L(Y1, l) = p->y[1]; LANE_L(Y2, l) = p->y[2];
+        LANE_F(iw0, l) = p->inv_w[0]; LANE_F(iw1, l) = p->inv_w[1]; LANE_F(iw2, l) = p->inv_w[2];
+        LANE_F(b10, l) = p->bary1[0]; LANE_F(b11, l) = p->bary1[1]; LANE_F(b12, l) = p->bary1[2];
+        LANE_F(b20, l) = p->bary2[0]; LANE_F(b21, l) = p->bary2[1]; LANE_F(b22, l) = p->bary2[2];
+        LANE_I(tri, l) = p->tri; LANE_I(flags, l) = (int)p->flags; LANE_I(mat, l) = p->material;
     }
-    for (int i = 0; i < GB_PLANES; ++i) gbuffer[i * npix + pix] = planes[i];
+#if VEC == 1
+    fg = fg ? 1 : 0;
+#endif
+
+    uintV planes[GB_PLANES];            /* background unless a lane has a prim */
+    for (int i = 0; i < GB_PLANES; ++i) planes[i] = 0;
+    GB_PUT(planes, LINEAR_DEPTH, as_uintV((floatV)INFINITY));
+    GB_PUT(planes, TRIANGLE_ID, (uintV)0xffffffffu);
+    if (ANY(fg)) {
+        /* Edge functions at the pixel center (docs/raster_contract.md §5), 64-bit. */
+        longV SX = convert_longV(px) * 256 + 128, SY = convert_longV(py) * 256 + 128;
+        longV dx0 = X1 - X0, dy0 = Y1 - Y0, dx1 = X2 - X1, dy1 = Y2 - Y1, dx2 = X0 - X2, dy2 = Y0 - Y2;
+        longV e0 = dx0 * (SY - Y0) - dy0 * (SX - X0);
+        longV e1 = dx1 * (SY - Y1) - dy1 * (SX - X1);
+        longV e2 = dx2 * (SY - Y2) - dy2 * (SX - X2);
+
+        /* Perspective-correct barycentrics in the input triangle at (e0,e1,e2) and at the
+         * neighbours one pixel right (e - dy·256) and one pixel down (e + dx·256). */
+#define BARY(E0, E1, E2, B1, B2) { \
+            floatV w0 = convert_floatV(E1) * iw0, w1 = convert_floatV(E2) * iw1, w2 = convert_floatV(E0) * iw2; \
+            floatV inv = 1.0f / ((w0 + w1) + w2); \
+            B1 = (w0 * b10 + w1 * b11 + w2 * b12) * inv; B2 = (w0 * b20 + w1 * b21 + w2 * b22) * inv; }
+        floatV c1, c2, c1x, c2x, c1y, c2y;
+        BARY(e0, e1, e2, c1, c2)
+        BARY(e0 - dy0 * 256, e1 - dy1 * 256, e2 - dy2 * 256, c1x, c2x)
+        BARY(e0 + dx0 * 256, e1 + dx1 * 256, e2 + dx2 * 256, c1y, c2y)
+#undef BARY
+        floatV c0 = 1.0f - c1 - c2;
+        c0 = select((floatV)0.0f, c0, fg); c1 = select((floatV)0.0f, c1, fg); c2 = select((floatV)0.0f, c2, fg);
+
+        intV i0, i1, i2;
+        for (int l = 0; l < VEC; ++l) {
+            int t = LANE_I(tri, l);
+            LANE_I(i0, l) = triangles[3 * t]; LANE_I(i1, l) = triangles[3 * t + 1]; LANE_I(i2, l) = triangles[3 * t + 2];
+        }
+
+        /* Normal: interpolated vertex normal, geometric where that degenerates. */
+        vec3V n = interp3(gather3(normals, i0), gather3(normals, i1), gather3(normals, i2), c0, c1, c2);
+        intV degenerate = fg & !(dot3V(n, n) > 1e-20f);
+        if (ANY(degenerate)) {
+            vec3V p0 = gather3(positions, i0), p1 = gather3(positions, i1), p2 = gather3(positions, i2);
+            vec3V a = { p1.x - p0.x, p1.y - p0.y, p1.z - p0.z }, b = { p2.x - p0.x, p2.y - p0.y, p2.z - p0.z };
+            vec3V g = { a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x };
+            n.x = select(n.x, g.x, degenerate); n.y = select(n.y, g.y, degenerate); n.z = select(n.z, g.z, degenerate);
+        }
+        floatV len2 = dot3V(n, n);
+        intV zero = !(len2 > 0.0f);
+        n.z = select(n.z, (floatV)1.0f, zero);
+        floatV inv_len = select(rsqrt(len2), (floatV)1.0f, zero);
+        inv_len = select(inv_len, -inv_len, (flags & (int)PRIM_BACKFACE) != 0);
+        n.x *= inv_len; n.y *= inv_len; n.z *= inv_len;
+
+        /* Material terms, per lane. */
+        floatV cr, cg, cb, spec_i, spec_p;
+        intV tex;
+        for (int l = 0; l < VEC; ++l) {
+            Material m = materials[LANE_I(mat, l)];
+            LANE_F(cr, l) = m.base_color[0]; LANE_F(cg, l) = m.base_color[1]; LANE_F(cb, l) = m.base_color[2];
+            LANE_F(spec_i, l) = m.spec_intensity; LANE_F(spec_p, l) = m.spec_power;
+            LANE_I(tex, l) = LANE_I(fg, l) ? m.texture : -1;
+        }
+
+        intV textured = tex >= 0;
+#if VEC == 1
+        textured = textured ? 1 : 0;
+#endif
+        if (ANY(textured)) {
+            /* UVs at the pixel and its neighbours -> GL's LOD, then trilinear. */
+            floatV u0, v0, u1, v1, u2, v2;
+            for (int l = 0; l < VEC; ++l) {
+                LANE_F(u0, l) = uvs[2 * LANE_I(i0, l)]; LANE_F(v0, l) = uvs[2 * LANE_I(i0, l) + 1];
+                LANE_F(u1, l) = uvs[2 * LANE_I(i1, l)]; LANE_F(v1, l) = uvs[2 * LANE_I(i1, l) + 1];
+                LANE_F(u2, l) = uvs[2 * LANE_I(i2, l)]; LANE_F(v2, l) = uvs[2 * LANE_I(i2, l) + 1];
+            }
+            floatV u = c0 * u0 + c1 * u1 + c2 * u2, v = c0 * v0 + c1 * v1 + c2 * v2;
+            floatV dux = (c1x - c1) * (u1 - u0) + (c2x - c2) * (u2 - u0);
+            floatV dvx = (c1x - c1) * (v1 - v0) + (c2x - c2) * (v2 - v0);
+            floatV duy = (c1y - c1) * (u1 - u0) + (c2y - c2) * (u2 - u0);
+            floatV dvy = (c1y - c1) * (v1 - v0) + (c2y - c2) * (v2 - v0);
+
+            intV first, nlev, wrap_s, wrap_t;
+            for (int l = 0; l < VEC; ++l) {
+                TexInfo ti = tex_infos[max(LANE_I(tex, l), 0)];
+                LANE_I(first, l) = ti.first_level; LANE_I(nlev, l) = ti.levels;
+                LANE_I(wrap_s, l) = ti.wrap_s; LANE_I(wrap_t, l) = ti.wrap_t;
+            }
+            intV off0, w0, h0;
+            gather_level(tex_levels, first, &off0, &w0, &h0);
+            floatV fw = convert_floatV(w0), fh = convert_floatV(h0);
+            floatV rho2 = fmax((dux * fw) * (dux * fw) + (dvx * fh) * (dvx * fh),
+                               (duy * fw) * (duy * fw) + (dvy * fh) * (dvy * fh));
+            rho2 = clamp(rho2, 1e-20f, 1e30f);       /* also turns NaN into a finite LOD */
+            floatV lod = clamp(0.5f * fast_log2V(rho2), 0.0f, convert_floatV(nlev - 1));
+            intV l0 = convert_intV(lod), l1 = min(l0 + 1, nlev - 1);
+            floatV f = lod - convert_floatV(l0);
+            intV offa, wa, ha, offb, wb, hb;
+            gather_level(tex_levels, first + l0, &offa, &wa, &ha);
+            gather_level(tex_levels, first + l1, &offb, &wb, &hb);
+            rgbaV ta = bilinearV(texels, srgb_lut, textured, offa, wa, ha, wrap_s, wrap_t, u, v);
+            rgbaV tb = bilinearV(texels, srgb_lut, textured & (f > 0.0f), offb, wb, hb, wrap_s, wrap_t, u, v);
+            cr = select(cr, cr * (ta.r + (tb.r - ta.r) * f), textured);
+            cg = select(cg, cg * (ta.g + (tb.g - ta.g) * f), textured);
+            cb = select(cb, cb * (ta.b + (tb.b - ta.b) * f), textured);
+        }
+
+        floatV vx = 0.0f, vy = 0.0f;
+        if (has_prev) {
+            vec3V wp = interp3(gather3(positions, i0), gather3(positions, i1), gather3(positions, i2), c0, c1, c2);
+            global const float* M = prev_view_proj;
+            floatV qx = M[0] * wp.x + M[1] * wp.y + M[2] * wp.z + M[3];
+            floatV qy = M[4] * wp.x + M[5] * wp.y + M[6] * wp.z + M[7];
+            floatV qw = M[12] * wp.x + M[13] * wp.y + M[14] * wp.z + M[15];
+            intV ahead = qw > 0.0f;
+            floatV prev_x = (qx / qw + 1.0f) * 0.5f * (float)width, prev_y = (1.0f - qy / qw) * 0.5f * (float)height;
+            vx = select((floatV)0.0f, convert_floatV(px) + 0.5f - prev_x, ahead);
+            vy = select((floatV)0.0f, convert_floatV(py) + 0.5f - prev_y, ahead);
+        }
+        uintV vel = pack_half2V(vx, vy);
+
+        uintV ufg = as_uintV(fg);
+#if VEC == 1
+        ufg = fg ? 0xffffffffu : 0u;
+#endif
+        uintV planes_fg[GB_PLANES];
+        for (int i = 0; i < GB_PLANES; ++i) planes_fg[i] = 0;
+        GB_PUT(planes_fg, ALBEDO, pack_srgb8x3V(cr, cg, cb));
+        GB_PUT(planes_fg, SPECULAR_INTENSITY, unormV(spec_i, 8));
+        GB_PUT(planes_fg, LINEAR_DEPTH, as_uintV(depth / far));
+        GB_PUT(planes_fg, NORMAL, pack_oct12x2V(n.x, n.y, n.z));
+        GB_PUT(planes_fg, SPECULAR_POWER, pack_log2unorm8V(spec_p));
+        GB_PUT(planes_fg, VELOCITY, vel);
+        GB_PUT(planes_fg, TRIANGLE_ID, as_uintV(tri));
+        for (int i = 0; i < GB_PLANES; ++i) planes[i] = select(planes[i], planes_fg[i], ufg);
+    }
+    for (int i = 0; i < GB_PLANES; ++i) {
+        global uint* dst = gbuffer + i * npix + pix0;
+        if (pix0 + VEC <= npix) {
+            vstoreV(planes[i], 0, dst);
+        } else {
+            for (int l = 0; l < VEC && pix0 + l < npix; ++l) dst[l] = (uint)LANE_I(planes[i], l);
+        }
+    }
 }

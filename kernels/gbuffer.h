@@ -49,59 +49,60 @@
 #define GB_TRIANGLE_ID_SHIFT 0
 #endif
 
+#include "vec.h"
+
 #define SPEC_POWER_LOG2_MAX 11.0f
 
-static inline uint unorm(float v, int bits)
+/* Codecs, written for VEC-wide vectors (vec.h) so the resolve packs VEC pixels at once;
+ * clrender/gbuffer.py decodes them. */
+static inline uintV unormV(floatV v, int bits)
 {
-    return (uint)(clamp(v, 0.0f, 1.0f) * (float)((1 << bits) - 1) + 0.5f);
+    return convert_uintV(clamp(v, 0.0f, 1.0f) * (float)((1 << bits) - 1) + 0.5f);
 }
 
-/* The report's pack_float2 (section II.3), generalised to `bits` per value and rounded. */
-static inline uint pack_float2(float2 f, int bits)
+/* The report's pack_float2 (section II.3), `bits` per value, rounded rather than truncated. */
+static inline uintV pack_float2V(floatV a, floatV b, int bits)
 {
-    return (unorm(f.x, bits) << bits) | unorm(f.y, bits);
+    return (unormV(a, bits) << bits) | unormV(b, bits);
 }
 
-/* sRGB encoding without pow(): srgb_bounds[k] is the linear value halfway between codes
- * k and k+1 (host-computed), so the code is the number of bounds below x (binary search). */
-static inline uint srgb8_encode(float x, constant float* srgb_bounds)
+static inline uintV pack_srgb8V(floatV x)
 {
-    uint code = 0;
-    for (uint step = 128; step > 0; step >>= 1)
-        if (x >= srgb_bounds[code + step - 1]) code += step;
-    return code;
+    x = clamp(x, 0.0f, 1.0f);
+    return unormV(select(1.055f * powr(x, 1.0f / 2.4f) - 0.055f, x * 12.92f, x <= 0.0031308f), 8);
 }
 
-static inline uint pack_srgb8x3(float3 c, constant float* srgb_bounds)
+static inline uintV pack_srgb8x3V(floatV r, floatV g, floatV b)
 {
-    return srgb8_encode(c.x, srgb_bounds) | (srgb8_encode(c.y, srgb_bounds) << 8)
-         | (srgb8_encode(c.z, srgb_bounds) << 16);
+    return pack_srgb8V(r) | (pack_srgb8V(g) << 8) | (pack_srgb8V(b) << 16);
 }
 
-static inline uint pack_unorm8(float v) { return unorm(v, 8); }
-
-/* Octahedral map of a unit vector to [0,1]^2, 12 bits each, u in the low bits. */
-static inline uint pack_oct12x2(float3 n)
+/* Octahedral map of a unit vector onto [0,1]^2, 12 bits each, u in the low bits. */
+static inline uintV pack_oct12x2V(floatV nx, floatV ny, floatV nz)
 {
-    n /= fabs(n.x) + fabs(n.y) + fabs(n.z);
-    float2 o = n.xy;
-    if (n.z < 0.0f)
-        o = (float2)((1.0f - fabs(n.y)) * (n.x >= 0.0f ? 1.0f : -1.0f),
-                     (1.0f - fabs(n.x)) * (n.y >= 0.0f ? 1.0f : -1.0f));
-    return unorm(o.x * 0.5f + 0.5f, 12) | (unorm(o.y * 0.5f + 0.5f, 12) << 12);
+    floatV s = fabs(nx) + fabs(ny) + fabs(nz);
+    floatV x = nx / s, y = ny / s;
+    floatV sx = select((floatV)-1.0f, (floatV)1.0f, x >= 0.0f), sy = select((floatV)-1.0f, (floatV)1.0f, y >= 0.0f);
+    floatV ox = select(x, (1.0f - fabs(y)) * sx, nz < 0.0f), oy = select(y, (1.0f - fabs(x)) * sy, nz < 0.0f);
+    return unormV(ox * 0.5f + 0.5f, 12) | (unormV(oy * 0.5f + 0.5f, 12) << 12);
 }
 
-static inline uint pack_log2unorm8(float power)
+static inline uintV pack_log2unorm8V(floatV power)
 {
-    return unorm(log2(clamp(power, 1.0f, 2048.0f)) / SPEC_POWER_LOG2_MAX, 8);
+    return unormV(log2(clamp(power, 1.0f, 2048.0f)) / SPEC_POWER_LOG2_MAX, 8);
 }
 
-static inline uint pack_half2(float2 v)
+/* Two IEEE halves (round to nearest even), x in the low 16 bits. */
+static inline uintV pack_half2V(floatV x, floatV y)
 {
-    ushort h[2];
-    vstore_half2_rte(v, 0, (half*)h);
-    return (uint)h[0] | ((uint)h[1] << 16);
+    ushort hx[VEC], hy[VEC];
+    vstore_halfV(x, 0, (half*)hx);
+    vstore_halfV(y, 0, (half*)hy);
+    uintV r;
+    for (int l = 0; l < VEC; ++l) LANE_I(r, l) = (int)((uint)hx[l] | ((uint)hy[l] << 16));
+    return r;
 }
 
+/* planes[GB_<FIELD>_PLANE] |= value << GB_<FIELD>_SHIFT: where the table puts each field. */
 #define GB_PUT(planes, FIELD, value) ((planes)[GB_##FIELD##_PLANE] |= (value) << GB_##FIELD##_SHIFT)
 #endif

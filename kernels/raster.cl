@@ -21,39 +21,7 @@
 #ifndef TILE
 #define TILE 16
 #endif
-#ifndef VEC
-#define VEC 8
-#endif
-
-#define CAT_(a, b) a##b
-#define CAT(a, b) CAT_(a, b)
-#if VEC == 1
-typedef int intV;
-typedef long longV;
-typedef float floatV;
-#define LANES ((intV)0)
-#define convert_intV(x) ((int)(x))
-#define convert_floatV(x) ((float)(x))
-#define convert_longV(x) ((long)(x))
-#define ANY(m) (m)
-#define LANE(v, i) (v)
-#else
-typedef CAT(int, VEC) intV;
-typedef CAT(long, VEC) longV;
-typedef CAT(float, VEC) floatV;
-#if VEC == 4
-#define LANES ((intV)(0, 1, 2, 3))
-#elif VEC == 8
-#define LANES ((intV)(0, 1, 2, 3, 4, 5, 6, 7))
-#elif VEC == 16
-#define LANES ((intV)(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15))
-#endif
-#define convert_intV CAT(convert_int, VEC)
-#define convert_floatV CAT(convert_float, VEC)
-#define convert_longV CAT(convert_long, VEC)
-#define ANY(m) any(m)
-#define LANE(v, i) (((int*)&(v))[i])
-#endif
+#include "vec.h"
 
 /* Prims whose bounding box is at most SMALL_EXTENT (24.8 units) on both axes have exact
  * 32-bit edge functions on any run inside their tile range: |d| < 2^14, |offset| < 2^15. */
@@ -125,9 +93,9 @@ void raster_tiles(global const Prim* prims, global const int* tile_offsets, glob
         if (p.flags & PRIM_MASKED) {
             const Material m = materials[p.material];
             for (int l = 0; l < VEC; ++l) {
-                if (LANE(wins, l) && px0 + l < width &&
+                if (LANE_I(wins, l) && px0 + l < width &&
                     surface_base_color(&p, px0 + l, py, m, uvs, triangles, tx).w < m.alpha_cutoff)
-                    LANE(wins, l) = 0;
+                    LANE_I(wins, l) = 0;
             }
         }
         best_depth = select(best_depth, depth, wins);
@@ -138,13 +106,8 @@ void raster_tiles(global const Prim* prims, global const int* tile_offsets, glob
     for (int l = 0; l < VEC; ++l) {
         int px = px0 + l;
         if (px < width) {
-#if VEC == 1
-            vis_depth[py * width + px] = best_depth;
-            vis_prim[py * width + px] = best_prim;
-#else
-            vis_depth[py * width + px] = ((const float*)&best_depth)[l];
-            vis_prim[py * width + px] = ((const int*)&best_prim)[l];
-#endif
+            vis_depth[py * width + px] = LANE_F(best_depth, l);
+            vis_prim[py * width + px] = LANE_I(best_prim, l);
         }
     }
 }

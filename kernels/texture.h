@@ -9,16 +9,30 @@
 #define CLRENDER_TEXTURE_H
 #include "structs.h"
 
-static inline int wrap_coord(int i, int size, int mode)
+/* Folds a texture coordinate into one period ([0,1) repeat, [0,1] mirror/clamp) in float
+ * math, so texel indices need only an edge fix-up instead of an integer modulo per fetch. */
+static inline float floor_fast(float u)   /* floor() for |u| < 2^31 without a library call */
 {
-    if (mode == WRAP_CLAMP) return clamp(i, 0, size - 1);
+    float t = (float)(int)u;
+    return t > u ? t - 1.0f : t;
+}
+
+static inline float fold_coord(float u, int mode)
+{
+    u = clamp(u, -1.0e9f, 1.0e9f);               /* NaN-free, int-convertible */
+    if (mode == WRAP_REPEAT) return u - floor_fast(u);
     if (mode == WRAP_MIRROR) {
-        int period = 2 * size;
-        int m = i % period; if (m < 0) m += period;
-        return m < size ? m : period - 1 - m;
+        float t = u - 2.0f * floor_fast(u * 0.5f);     /* [0, 2) */
+        return t > 1.0f ? 2.0f - t : t;
     }
-    int m = i % size;
-    return m < 0 ? m + size : m;
+    return clamp(u, 0.0f, 1.0f);
+}
+
+/* Texel index i in [-1, size] (a bilinear footprint around a folded coordinate) -> valid index. */
+static inline int wrap_edge(int i, int size, int mode)
+{
+    if (mode == WRAP_REPEAT) return i < 0 ? size - 1 : (i >= size ? 0 : i);
+    return clamp(i, 0, size - 1);      /* clamp; mirror repeats the edge texel at the fold */
 }
 
 static inline float4 texel(global const uint* texels, constant float* srgb_lut, TexLevel lv, int x, int y)
@@ -31,16 +45,16 @@ static inline float4 texel(global const uint* texels, constant float* srgb_lut, 
 static float4 sample_bilinear(global const uint* texels, constant float* srgb_lut, TexLevel lv,
                               int wrap_s, int wrap_t, float2 uv)
 {
-    float fx = uv.x * (float)lv.width - 0.5f, fy = uv.y * (float)lv.height - 0.5f;
-    float x0f = floor(fx), y0f = floor(fy);
-    float ax = fx - x0f, ay = fy - y0f;
-    /* Keep huge coordinates (wrapping UVs far from 0) inside int range. */
-    int x0 = (int)clamp(x0f, -1.0e9f, 1.0e9f), y0 = (int)clamp(y0f, -1.0e9f, 1.0e9f);
-    int xa = wrap_coord(x0, lv.width, wrap_s), xb = wrap_coord(x0 + 1, lv.width, wrap_s);
-    int ya = wrap_coord(y0, lv.height, wrap_t), yb = wrap_coord(y0 + 1, lv.height, wrap_t);
+    float fx = fold_coord(uv.x, wrap_s) * (float)lv.width - 0.5f;
+    float fy = fold_coord(uv.y, wrap_t) * (float)lv.height - 0.5f;
+    int x0 = (int)(fx + 1.0f) - 1, y0 = (int)(fy + 1.0f) - 1;     /* floor: fx, fy >= -0.5 */
+    float ax = fx - (float)x0, ay = fy - (float)y0;
+    int xa = wrap_edge(x0, lv.width, wrap_s), xb = wrap_edge(x0 + 1, lv.width, wrap_s);
+    int ya = wrap_edge(y0, lv.height, wrap_t), yb = wrap_edge(y0 + 1, lv.height, wrap_t);
     float4 t00 = texel(texels, srgb_lut, lv, xa, ya), t10 = texel(texels, srgb_lut, lv, xb, ya);
     float4 t01 = texel(texels, srgb_lut, lv, xa, yb), t11 = texel(texels, srgb_lut, lv, xb, yb);
-    return mix(mix(t00, t10, ax), mix(t01, t11, ax), ay);
+    float4 top = t00 + (t10 - t00) * ax, bottom = t01 + (t11 - t01) * ax;
+    return top + (bottom - top) * ay;
 }
 
 /* GL's LOD: log2 of the longer screen-space footprint axis, in level-0 texels. */
@@ -48,8 +62,12 @@ static float texture_lod(TexLevel base, float2 duv_dx, float2 duv_dy)
 {
     float2 sx = duv_dx * (float2)((float)base.width, (float)base.height);
     float2 sy = duv_dy * (float2)((float)base.width, (float)base.height);
-    float rho2 = fmax(dot(sx, sx), dot(sy, sy));
-    return 0.5f * log2(fmax(rho2, 1e-20f));
+    float rho2 = fmax(sx.x * sx.x + sx.y * sx.y, sy.x * sy.x + sy.y * sy.y);
+    /* log2 from the float's exponent and a linear mantissa, as texture units approximate it */
+    rho2 = clamp(rho2, 1e-20f, 1e30f);
+    int bits = as_int(rho2);
+    float log2_rho2 = (float)((bits >> 23) - 127) + (as_float((bits & 0x007fffff) | 0x3f800000) - 1.0f);
+    return 0.5f * log2_rho2;
 }
 
 static float4 sample_trilinear(global const uint* texels, constant float* srgb_lut,
@@ -65,6 +83,6 @@ static float4 sample_trilinear(global const uint* texels, constant float* srgb_l
     float4 a = sample_bilinear(texels, srgb_lut, levels[info.first_level + l0], info.wrap_s, info.wrap_t, uv);
     if (f == 0.0f) return a;
     float4 b = sample_bilinear(texels, srgb_lut, levels[info.first_level + l1], info.wrap_s, info.wrap_t, uv);
-    return mix(a, b, f);
+    return a + (b - a) * f;
 }
 #endif

@@ -54,10 +54,9 @@ def _pack_on_device(cl_device, values):
     kernel = cl_device.kernel("testing/layout_probe.cl", "pack_probe")
     n = len(values)
     inp = cla.to_device(q, np.ascontiguousarray(values, np.float32))
-    bounds = cla.to_device(q, gb.srgb8_bounds())
     out = cla.zeros(q, n * 4, np.uint32)
     out2 = cla.zeros(q, n, np.uint32)
-    kernel(q, (n,), None, inp.data, bounds.data, np.int32(n), out.data, out2.data)
+    kernel(q, (n,), None, inp.data, np.int32(n), out.data, out2.data)
     return out.get().reshape(n, 4), out2.get()
 
 
@@ -98,7 +97,7 @@ def test_srgb_and_half_packing_match_numpy(cl_device):
     rgb[:4] = [[0, 0, 0], [1, 1, 1], [0.5, 0.2, 0.0031308], [1e-6, 0.9999, 0.04]]
     vel = rng.normal(scale=30, size=(n, 2))
     words, report = _pack_on_device(cl_device, np.column_stack([rgb, np.ones(n)]))
-    # sRGB8: the kernel's table encoder equals NumPy's exact encoder.
+    # sRGB8: the kernel's encoder (powr, <= 16 ulp) equals NumPy's exact one but at code boundaries.
     expect = gb.linear_to_srgb8(rgb.astype(np.float32))
     got = np.stack([(words[:, 0] >> (8 * c)) & 255 for c in range(3)], 1)
     assert np.abs(got.astype(int) - expect.astype(int)).max() <= 1

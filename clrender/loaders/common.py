@@ -209,16 +209,15 @@ def load_images(jobs: Sequence[Callable[[], np.ndarray]]) -> list[np.ndarray]:
 # -- trimesh -----------------------------------------------------------------------------------------
 def trimesh_load(path, **kwargs):
     """`trimesh.load(..., force='scene')` with every failure turned into a SceneError naming `path`."""
-    import logging
-
     import trimesh
 
     where = kwargs.pop("where", path)
-    logging.getLogger("trimesh").setLevel(logging.ERROR)
     try:
         return trimesh.load(path, force="scene", **kwargs)
     except SceneError:
         raise
+    except IndexError as exc:  # trimesh indexes vertex arrays with the file's face indices
+        raise fail(where, f"a face vertex index is out of range ({exc})") from None
     except Exception as exc:  # trimesh raises anything from KeyError to AssertionError
         raise fail(where, f"cannot parse file ({type(exc).__name__}: {exc})") from None
 

@@ -44,8 +44,6 @@ COMPONENT_TYPES = {5120: "<i1", 5121: "<u1", 5122: "<i2", 5123: "<u2", 5125: "<u
 TYPE_SIZES = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4, "MAT2": 4, "MAT3": 9, "MAT4": 16}
 WRAP_MODES = {10497: "repeat", 33071: "clamp", 33648: "mirror"}
 MODE_TRIANGLES, MODE_STRIP, MODE_FAN = 4, 5, 6
-# primitive modes for which trimesh stores a geometry under the primitive's name
-_TRIMESH_MODES = (0, 1, MODE_TRIANGLES, MODE_STRIP)
 # required extensions whose absence changes geometry or textures: refuse the file
 UNSUPPORTED_REQUIRED = {"KHR_draco_mesh_compression", "EXT_meshopt_compression", "KHR_texture_basisu",
                         "MSFT_texture_dds", "EXT_mesh_gpu_instancing", "KHR_mesh_quantization"}
@@ -295,8 +293,8 @@ def _validate_inner(doc: _Doc) -> None:
                 raise doc.err(f"{what}: unknown mode {mode!r}")
             if "material" in prim:
                 doc.get("materials", prim["material"], what)
-            if mode not in (MODE_TRIANGLES, MODE_STRIP, MODE_FAN) and mode not in _TRIMESH_MODES:
-                continue
+            if mode not in (MODE_TRIANGLES, MODE_STRIP, MODE_FAN):
+                continue  # points and lines are not rendered
             if "POSITION" not in attrs:
                 raise doc.err(f"{what} has no POSITION attribute")
             pos = accessors[attrs["POSITION"]]
@@ -413,19 +411,29 @@ def _traversal(doc: _Doc) -> list[int]:
     return order
 
 
+def _triangle_primitives(mesh: dict) -> list[tuple[int, dict]]:
+    """(index, primitive) of the primitives that are rendered: TRIANGLES and TRIANGLE_STRIP."""
+    return [(p, prim) for p, prim in enumerate(mesh["primitives"])
+            if prim.get("mode", MODE_TRIANGLES) in (MODE_TRIANGLES, MODE_STRIP)]
+
+
 def _trimesh_scene(doc: _Doc):
-    """trimesh's Scene for a renamed, material-less, camera-less copy of the document."""
+    """trimesh's Scene for a renamed, triangles-only, material-less, camera-less copy of the document."""
     j = doc.json
+    meshes = doc.list("meshes")
     header = {k: j[k] for k in ("asset", "scene", "scenes", "accessors", "bufferViews") if k in j}
-    header["nodes"] = [dict({k: v for k, v in node.items() if k in ("children", "matrix", "translation",
-                                                                       "rotation", "scale", "mesh")},
-                            name=f"n{i}") for i, node in enumerate(doc.list("nodes"))]
-    header["meshes"] = [{"name": f"m{i}",
-                         "primitives": [{k: v for k, v in dict(
-                             p, attributes={a: p["attributes"][a] for a in ("POSITION", "NORMAL")
-                                            if a in p["attributes"]}).items()
-                             if k in ("attributes", "indices", "mode")} for p in mesh["primitives"]]}
-                        for i, mesh in enumerate(doc.list("meshes"))]
+    header["nodes"] = []
+    for i, node in enumerate(doc.list("nodes")):
+        keep = {k: v for k, v in node.items() if k in ("children", "matrix", "translation", "rotation", "scale")}
+        # a node whose mesh has no triangle primitive would be left out of trimesh's graph,
+        # children included: give it no mesh instead
+        if "mesh" in node and _triangle_primitives(meshes[node["mesh"]]):
+            keep["mesh"] = node["mesh"]
+        header["nodes"].append(dict(keep, name=f"n{i}"))
+    header["meshes"] = [{"name": f"m{i}", "primitives": [
+        {"attributes": {a: prim["attributes"][a] for a in ("POSITION", "NORMAL") if a in prim["attributes"]},
+         **{k: prim[k] for k in ("indices", "mode") if k in prim}}
+        for _, prim in _triangle_primitives(mesh)]} for i, mesh in enumerate(meshes)]
     header["buffers"] = [{"uri": f"buffer{k}.bin", "byteLength": len(b)} for k, b in enumerate(doc.buffers)]
     resolver = {f"buffer{k}.bin": b for k, b in enumerate(doc.buffers)}
     stream = io.BytesIO(json.dumps(header).encode("utf-8"))
@@ -441,11 +449,10 @@ def _primitive_names(doc: _Doc) -> dict[tuple[int, int], str]:
     counts: dict = {}
     out = {}
     for i, mesh in enumerate(doc.list("meshes")):
-        for p, prim in enumerate(mesh["primitives"]):
+        for p, _ in _triangle_primitives(mesh):
             name = unique_name(f"m{i}", names, counts=counts)
-            if prim.get("mode", MODE_TRIANGLES) in _TRIMESH_MODES:
-                names[name] = None
-                out[(i, p)] = name
+            names[name] = None
+            out[(i, p)] = name
     return out
 
 
@@ -469,6 +476,8 @@ def _materials(doc: _Doc) -> tuple[list[Material], list[Texture]]:
             if info.get("texCoord", 0) != 0:
                 warnings.warn(f"{doc.path}: material {name!r} uses TEXCOORD_{info['texCoord']} for its base "
                               f"color; only TEXCOORD_0 is loaded", stacklevel=3)
+            if "KHR_texture_transform" in (info.get("extensions") or {}):
+                warnings.warn(f"{doc.path}: material {name!r}: KHR_texture_transform is ignored", stacklevel=3)
             tex = textures_json[info["index"]]
             src = _texture_source(tex)
             if src is not None:
@@ -585,7 +594,7 @@ def load_gltf(path) -> Scene:
             mode = prim.get("mode", MODE_TRIANGLES)
             what = f"mesh {mi} ({mesh_name!r}) primitive {p}"
             if mode not in (MODE_TRIANGLES, MODE_STRIP):
-                if mode == MODE_FAN:
+                if mode == MODE_FAN:  # trimesh does not read fans
                     warnings.warn(f"{path}: {what}: TRIANGLE_FAN primitives are not loaded", stacklevel=2)
                 continue  # points and lines are not rendered
             gnode = instances.get((n, prim_names[(mi, p)]))

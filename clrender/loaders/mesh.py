@@ -59,19 +59,24 @@ def _uv(geom) -> Optional[np.ndarray]:
 # -- OBJ -----------------------------------------------------------------------------------------------
 def _check_obj_indices(path: Path, text: str) -> None:
     counts = {key: len(re.findall(rf"^{key}[ \t]", text, re.M)) for key in ("v", "vt", "vn")}
-    body = " ".join(re.findall(r"^f[ \t]+([^\n]*)", text, re.M))
-    if not body:
+    tokens = " ".join(re.findall(r"^f[ \t]+([^\n]*)", text, re.M)).split()
+    if not tokens:
         return
-    patterns = {
-        "v": r"(?:^|\s)(-?\d+)",
-        "vt": r"(?:^|\s)-?\d+/(-?\d+)",
-        "vn": r"(?:^|\s)-?\d+/-?\d*/(-?\d+)",
-    }
-    for key, pattern in patterns.items():
-        found = re.findall(pattern, body)
+    if not any("/" in t for t in tokens):
+        columns = {"v": tokens}
+    else:
+        split = [t.split("/") for t in tokens]
+        columns = {"v": [s[0] for s in split],
+                   "vt": [s[1] for s in split if len(s) > 1 and s[1]],
+                   "vn": [s[2] for s in split if len(s) > 2 and s[2]]}
+    for key, found in columns.items():
         if not found:
             continue
-        idx = np.array(found, dtype=np.int64)
+        try:
+            idx = np.array(found, dtype=np.int64)
+        except ValueError:
+            bad = next(t for t in found if not re.fullmatch(r"[-+]?\d+", t))
+            raise fail(path, f"face {key} index {bad!r} is not an integer") from None
         n = counts[key]
         bad = (idx == 0) | (idx > n) | (idx < -n)
         if bad.any():

@@ -2,6 +2,7 @@
  * sees them, and runs the G-buffer pack functions on given inputs, so tests can compare
  * them with clrender/structs.py and the NumPy codecs in clrender/gbuffer.py.
  * Work-groups: 1-D, any size. */
+#define VEC 1
 #include "../structs.h"
 #include "../gbuffer.h"
 
@@ -26,13 +27,12 @@ kernel void struct_layout(global int* out)
 
 /* in: float4 per item (x, y, z, w); out: uint4 per item: srgb8x3(xyz), oct12x2(xyz),
  * log2unorm8(w), half2(x, y); out2: pack_float2((x, y), 16) — the report's packing. */
-kernel void pack_probe(global const float4* in, constant float* srgb_bounds, int n,
-                       global uint4* out, global uint* out2)
+kernel void pack_probe(global const float4* in, int n, global uint4* out, global uint* out2)
 {
     int i = get_global_id(0);
     if (i >= n) return;
     float4 v = in[i];
-    out[i] = (uint4)(pack_srgb8x3(v.xyz, srgb_bounds), pack_oct12x2(v.xyz), pack_log2unorm8(v.w),
-                     pack_half2(v.xy));
-    out2[i] = pack_float2(v.xy, 16);
+    out[i] = (uint4)(pack_srgb8x3V(v.x, v.y, v.z), pack_oct12x2V(v.x, v.y, v.z), pack_log2unorm8V(v.w),
+                     pack_half2V(v.x, v.y));
+    out2[i] = pack_float2V(v.x, v.y, 16);
 }

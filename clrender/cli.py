@@ -1,0 +1,636 @@
+"""Command line: `clrender render | devices | info`, a thin loop over the library API.
+
+    clrender render SCENE [SCENE ...] -o OUT [--width W --height H --device NAME --tile-size N
+                    --aov depth,normal,... --camera-eye x,y,z --camera-target x,y,z --fov DEG --quiet]
+    clrender devices [--json]
+    clrender info SCENE [--json]
+
+Errors are one line on stderr (`clrender: error: ...`) and a non-zero exit status; set
+CLRENDER_DEBUG=1 to get the traceback instead.
+"""
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import math
+import os
+import sys
+import tempfile
+import time
+from pathlib import Path
+from typing import Optional, Sequence
+
+import numpy as np
+
+PROG = "clrender"
+ENV_DEBUG = "CLRENDER_DEBUG"
+DEFAULT_SIZE = (1280, 720)
+IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg")
+# AOVs the CLI writes (Frame.aov names); `image` is the main output, not an AOV.
+AOVS = ("depth", "linear_depth", "normal", "albedo", "specular_intensity", "specular_power",
+        "triangle_id", "velocity")
+INT_AOVS = ("triangle_id",)
+
+
+class CLIError(Exception):
+    """A user-facing error: printed as one line, exit status `code`."""
+
+    def __init__(self, message: str, code: int = 1):
+        super().__init__(message)
+        self.code = code
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse that reports bad usage as a CLIError (one line) instead of usage + exit."""
+
+    def error(self, message):
+        raise CLIError(f"{message} (see `{self.prog} --help`)", code=2)
+
+
+# ---------------------------------------------------------------------------------------------
+# argument types
+def _vec3(text: str) -> tuple[float, float, float]:
+    parts = [p.strip() for p in text.replace(";", ",").split(",")]
+    try:
+        values = tuple(float(p) for p in parts)
+    except ValueError:
+        values = ()
+    if len(values) != 3 or not all(math.isfinite(v) for v in values):
+        raise argparse.ArgumentTypeError(f"expected three finite numbers x,y,z, got {text!r}")
+    return values
+
+
+def _positive_int(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}")
+    return value
+
+
+def _fov(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        value = float("nan")
+    if not 0.0 < value < 180.0:
+        raise argparse.ArgumentTypeError(f"expected degrees in (0, 180), got {text!r}")
+    return value
+
+
+def _aov_list(text: str) -> list[str]:
+    names = [n.strip().lower() for n in text.split(",") if n.strip()]
+    if not names:
+        raise argparse.ArgumentTypeError("expected a comma-separated list of AOV names")
+    unknown = [n for n in names if n not in AOVS]
+    if unknown:
+        raise argparse.ArgumentTypeError(f"unknown AOV {unknown[0]!r} (available: {', '.join(AOVS)})")
+    return list(dict.fromkeys(names))
+
+
+def _join_vector_options(argv: list[str]) -> list[str]:
+    """`--camera-eye -1,2,3` -> `--camera-eye=-1,2,3`: argparse would read `-1,2,3` as an option."""
+    out, i = [], 0
+    while i < len(argv):
+        arg = argv[i]
+        if arg in ("--camera-eye", "--camera-target") and i + 1 < len(argv) and argv[i + 1].startswith("-") \
+                and argv[i + 1][1:2] in "0123456789.":
+            out.append(f"{arg}={argv[i + 1]}")
+            i += 2
+            continue
+        out.append(arg)
+        i += 1
+    return out
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = _Parser(prog=PROG, description="clrender: a tiled deferred renderer whose pixels are "
+                                            "computed by OpenCL kernels.")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
+    sub.required = True
+
+    r = sub.add_parser("render", help="render scene files to images (and AOVs)",
+                       description="Render each SCENE with one renderer. OUT is an image file (.png/.jpg) "
+                                   "for one scene, or a directory (OUT/<scene-name>.png) or a pattern "
+                                   "containing {name} (and optionally {index}) for several. AOVs are "
+                                   "written next to each image as <out-stem>.<aov>.npy (exact) and "
+                                   "<out-stem>.<aov>.png (preview), plus .exr for float AOVs when an EXR "
+                                   "writer is installed.")
+    r.add_argument("scenes", nargs="+", metavar="SCENE", help="scene file (.toml .gltf .glb .obj .ply .stl)")
+    r.add_argument("-o", "--output", required=True, metavar="OUT",
+                   help="image file, directory, or pattern containing {name}")
+    r.add_argument("--width", type=_positive_int, metavar="W",
+                   help="image width (default: the scene's [render] width, else 1280)")
+    r.add_argument("--height", type=_positive_int, metavar="H",
+                   help="image height (default: the scene's [render] height, else 720)")
+    r.add_argument("--device", metavar="NAME",
+                   help="OpenCL device: a name substring or P:D (default: $CLRENDER_DEVICE, else a GPU, "
+                        "else PoCL); see `clrender devices`")
+    r.add_argument("--tile-size", type=int, metavar="N", help="tile size in pixels: 8, 16 or 32 (default 16)")
+    r.add_argument("--aov", type=_aov_list, default=[], metavar="LIST",
+                   help=f"comma-separated AOVs to write: {','.join(AOVS)}")
+    r.add_argument("--camera-eye", type=_vec3, metavar="X,Y,Z", help="camera position (overrides the scene's)")
+    r.add_argument("--camera-target", type=_vec3, metavar="X,Y,Z", help="point the camera looks at")
+    r.add_argument("--fov", type=_fov, metavar="DEG", help="vertical field of view in degrees")
+    r.add_argument("-q", "--quiet", action="store_true", help="no progress or notes on stderr")
+    r.set_defaults(func=cmd_render)
+
+    d = sub.add_parser("devices", help="list OpenCL devices and whether clrender's kernels build on them",
+                       description="List every OpenCL device with the limits clrender relies on, mark the "
+                                   "default one, and try building clrender's kernels on each.")
+    d.add_argument("--json", action="store_true", help="print JSON instead of a table")
+    d.set_defaults(func=cmd_devices)
+
+    i = sub.add_parser("info", help="describe a scene file",
+                       description="Triangles, vertices, meshes, materials, textures, bounds and camera "
+                                   "of a scene file.")
+    i.add_argument("scene", metavar="SCENE")
+    i.add_argument("--json", action="store_true", help="print JSON instead of text")
+    i.set_defaults(func=cmd_info)
+    return parser
+
+
+# ---------------------------------------------------------------------------------------------
+# small helpers
+def _note(args, message: str) -> None:
+    if not getattr(args, "quiet", False):
+        print(message, file=sys.stderr, flush=True)
+
+
+def _load(path: str):
+    from .loaders import load_scene
+    return load_scene(path)
+
+
+def _scene_size(scene, args) -> tuple[int, int]:
+    """--width/--height, else the scene's [render] size, else 1280x720; one given keeps the aspect."""
+    settings = scene.settings.get("render", {}) if isinstance(scene.settings, dict) else {}
+    dw, dh = settings.get("width"), settings.get("height")
+    if not (isinstance(dw, int) and isinstance(dh, int) and dw > 0 and dh > 0):
+        dw = dw if isinstance(dw, int) and dw > 0 else DEFAULT_SIZE[0]
+        dh = dh if isinstance(dh, int) and dh > 0 else DEFAULT_SIZE[1]
+    w, h = args.width, args.height
+    if w is None and h is None:
+        return dw, dh
+    if w is None:
+        w = max(1, round(h * dw / dh))
+    if h is None:
+        h = max(1, round(w * dh / dw))
+    return w, h
+
+
+def _camera(scene, args):
+    """The scene's camera (or the framing default) with the command-line overrides applied."""
+    from .camera import Camera
+
+    cam = scene.default_camera()
+    if args.camera_eye is None and args.camera_target is None and args.fov is None:
+        return cam
+    eye = args.camera_eye if args.camera_eye is not None else cam.eye
+    target = args.camera_target if args.camera_target is not None else cam.target
+    fov = args.fov if args.fov is not None else cam.fov_y_deg
+    far = cam.far
+    if args.camera_eye is not None or args.camera_target is not None:
+        # Keep the whole scene inside the far plane from the new viewpoint.
+        lo, hi = scene.bounds().astype(np.float64)
+        reach = float(np.linalg.norm(np.subtract((lo + hi) / 2, eye)) + np.linalg.norm(hi - lo) / 2)
+        far = max(far, reach * 1.5)
+    up = np.asarray(cam.up, np.float64)
+    forward = np.subtract(target, eye)
+    if np.linalg.norm(forward) == 0.0:
+        raise CLIError(f"camera eye and target are the same point {tuple(eye)}")
+    if np.linalg.norm(np.cross(forward, up)) < 1e-6 * np.linalg.norm(forward):
+        up = np.array([0.0, 0.0, -1.0])          # looking straight up or down
+    try:
+        return Camera.look_at(eye, target, tuple(up), fov, near=min(cam.near, far * 0.5), far=far)
+    except ValueError as exc:
+        raise CLIError(str(exc)) from None
+
+
+# ---------------------------------------------------------------------------------------------
+# outputs
+def _plan_outputs(scenes: list[str], out: str) -> list[Path]:
+    """One image path per scene, checked before anything is rendered."""
+    n = len(scenes)
+    if "{" in out:
+        paths = []
+        for index, scene in enumerate(scenes, 1):
+            try:
+                text = out.format(name=Path(scene).stem, index=index)
+            except (KeyError, IndexError, ValueError) as exc:
+                raise CLIError(f"bad output pattern {out!r}: use {{name}} and {{index}} only ({exc})") from None
+            p = Path(text)
+            if p.suffix.lower() not in IMAGE_SUFFIXES:
+                p = p.with_name(p.name + ".png")
+            paths.append(p)
+        if n > 1 and len({str(p) for p in paths}) == 1:
+            raise CLIError(f"output pattern {out!r} gives the same file for every scene; use {{name}}")
+        return paths
+    target = Path(out)
+    is_dir = target.is_dir() or out.endswith(("/", os.sep)) or target.suffix == ""
+    if not is_dir:
+        if target.suffix.lower() not in IMAGE_SUFFIXES:
+            raise CLIError(f"output {out!r}: unsupported image type {target.suffix!r} "
+                           f"(use {', '.join(IMAGE_SUFFIXES)}, a directory, or a pattern with {{name}})")
+        if n > 1:
+            raise CLIError(f"{n} scenes but one output file {out!r}: give a directory or a pattern "
+                           f"containing {{name}}")
+        return [target]
+    return [target / f"{Path(scene).stem}.png" for scene in scenes]
+
+
+_EXR_STATE: dict = {"available": None}
+
+
+def _exr_available() -> bool:
+    """Whether imageio can write .exr with what is installed (probed once; never downloads)."""
+    if _EXR_STATE["available"] is None:
+        import imageio.v3 as iio
+        saved = os.environ.get("IMAGEIO_NO_INTERNET")
+        os.environ["IMAGEIO_NO_INTERNET"] = "1"
+        try:
+            with tempfile.TemporaryDirectory() as tmp:
+                iio.imwrite(os.path.join(tmp, "probe.exr"), np.zeros((2, 2, 3), np.float32), extension=".exr")
+            _EXR_STATE["available"] = True
+        except Exception:
+            _EXR_STATE["available"] = False
+        finally:
+            if saved is None:
+                os.environ.pop("IMAGEIO_NO_INTERNET", None)
+            else:
+                os.environ["IMAGEIO_NO_INTERNET"] = saved
+    return _EXR_STATE["available"]
+
+
+def _aov_paths(image: Path, aovs: Sequence[str], exr: bool) -> list[Path]:
+    stem = image.with_suffix("")
+    paths = []
+    for aov in aovs:
+        paths += [Path(f"{stem}.{aov}.npy"), Path(f"{stem}.{aov}.png")]
+        if exr and aov not in INT_AOVS:
+            paths.append(Path(f"{stem}.{aov}.exr"))
+    return paths
+
+
+def _check_distinct(scenes: list[str], images: list[Path], aovs: Sequence[str], exr: bool) -> None:
+    """Refuse to write any file twice in one run, or over an input scene."""
+    owner: dict[str, str] = {}
+    inputs = {os.path.realpath(s): s for s in scenes}
+    for scene, image in zip(scenes, images):
+        for p in [image, *_aov_paths(image, aovs, exr)]:
+            key = os.path.realpath(p)
+            if key in inputs:
+                raise CLIError(f"output {p} would overwrite the input scene {inputs[key]}")
+            if key in owner:
+                raise CLIError(f"two outputs would be written to {p} (scenes {owner[key]} and {scene}); "
+                               f"use a pattern with {{name}}/{{index}} or separate runs")
+            owner[key] = scene
+
+
+# -- previews -------------------------------------------------------------------------------
+def _u8(x: np.ndarray) -> np.ndarray:
+    return np.floor(np.clip(np.nan_to_num(x, nan=0.0), 0.0, 1.0) * 255.0 + 0.5).astype(np.uint8)
+
+
+def _preview_depth(depth: np.ndarray, background: np.ndarray) -> np.ndarray:
+    """Near white -> far dark gray, background black."""
+    fg = ~background & np.isfinite(depth)
+    out = np.zeros(depth.shape, np.float64)
+    if fg.any():
+        lo, hi = float(depth[fg].min()), float(depth[fg].max())
+        t = (depth[fg] - lo) / (hi - lo) if hi > lo else np.zeros(int(fg.sum()))
+        out[fg] = 1.0 - 0.85 * t
+    return _u8(out)
+
+
+def _hash_u32(x: np.ndarray) -> np.ndarray:
+    """A fixed integer hash (lowbias32), so a triangle keeps its color across runs and scenes."""
+    h = x.astype(np.uint32)
+    with np.errstate(over="ignore"):
+        h ^= h >> np.uint32(16)
+        h *= np.uint32(0x7FEB352D)
+        h ^= h >> np.uint32(15)
+        h *= np.uint32(0x846CA68B)
+        h ^= h >> np.uint32(16)
+    return h
+
+
+def _preview_ids(ids: np.ndarray) -> np.ndarray:
+    h = _hash_u32(ids)
+    rgb = np.stack([(h >> np.uint32(s)) & np.uint32(255) for s in (0, 8, 16)], -1)
+    rgb = (48 + rgb * 207 // 255).astype(np.uint8)      # never black: black is the background
+    rgb[ids < 0] = 0
+    return rgb
+
+
+def _preview_velocity(vel: np.ndarray) -> np.ndarray:
+    """Color wheel: hue = direction, brightness = speed relative to the fastest pixel."""
+    v = np.nan_to_num(vel.astype(np.float64), nan=0.0, posinf=0.0, neginf=0.0)
+    mag = np.hypot(v[..., 0], v[..., 1])
+    peak = float(mag.max()) if mag.size else 0.0
+    value = mag / peak if peak > 0 else np.zeros_like(mag)
+    hue = (np.arctan2(-v[..., 1], v[..., 0]) / (2 * np.pi)) % 1.0
+    k = (np.array([5.0, 3.0, 1.0]) + hue[..., None] * 6.0) % 6.0
+    rgb = value[..., None] * (1.0 - np.clip(np.minimum(k, 4.0 - k), 0.0, 1.0))
+    return _u8(rgb)
+
+
+def preview(name: str, data: np.ndarray, background: np.ndarray) -> np.ndarray:
+    """A viewable uint8 image of AOV `name`."""
+    from .gbuffer import SPEC_POWER_LOG2_MAX, linear_to_srgb8
+
+    if name in ("depth", "linear_depth"):
+        return _preview_depth(data, background)
+    if name == "normal":
+        out = _u8(data * 0.5 + 0.5)
+        out[background] = 0
+        return out
+    if name == "albedo":
+        return linear_to_srgb8(data)
+    if name == "specular_intensity":
+        return _u8(data)
+    if name == "specular_power":
+        return _u8(np.log2(np.maximum(data, 1.0)) / SPEC_POWER_LOG2_MAX)
+    if name == "triangle_id":
+        return _preview_ids(data)
+    if name == "velocity":
+        return _preview_velocity(data)
+    raise ValueError(f"no preview for AOV {name!r}")
+
+
+def _write_outputs(frame, image: Path, aovs: Sequence[str], args) -> None:
+    import imageio.v3 as iio
+
+    image.parent.mkdir(parents=True, exist_ok=True)
+    iio.imwrite(image, frame.image)
+    stem = image.with_suffix("")
+    background = frame.triangle_id < 0
+    for aov in aovs:
+        data = np.asarray(frame.aov(aov))
+        np.save(f"{stem}.{aov}.npy", data)
+        iio.imwrite(f"{stem}.{aov}.png", preview(aov, data, background))
+        if aov not in INT_AOVS and _exr_available():
+            arr = data.astype(np.float32)
+            if arr.ndim == 3 and arr.shape[2] == 2:       # velocity: pad to RGB
+                arr = np.concatenate([arr, np.zeros_like(arr[..., :1])], -1)
+            iio.imwrite(f"{stem}.{aov}.exr", arr, extension=".exr")
+
+
+# ---------------------------------------------------------------------------------------------
+# commands
+def cmd_render(args) -> int:
+    from .device import default_device_info
+    from .renderer import RenderConfig, Renderer
+
+    scenes = list(args.scenes)
+    for s in scenes:
+        p = Path(s)
+        if not p.exists():
+            raise CLIError(f"{s}: file not found")
+        if not p.is_file():
+            raise CLIError(f"{s}: not a file")
+    try:
+        config = RenderConfig() if args.tile_size is None else RenderConfig(tile_size=args.tile_size)
+    except ValueError as exc:
+        raise CLIError(f"--tile-size: {exc}") from None
+    images = _plan_outputs(scenes, args.output)
+    exr = bool(args.aov) and any(a not in INT_AOVS for a in args.aov) and _exr_available()
+    _check_distinct(scenes, images, args.aov, exr)
+    if args.aov and any(a not in INT_AOVS for a in args.aov) and not exr:
+        _note(args, f"{PROG}: note: no EXR writer installed (imageio has no .exr backend); "
+                    f"float AOVs are written as .npy and .png only")
+    info = default_device_info(args.device)
+
+    renderers: dict = {}            # one per resolution (normally exactly one); kernels build once
+    failures = 0
+    n = len(scenes)
+    for index, (scene_path, image) in enumerate(zip(scenes, images), 1):
+        try:
+            scene = _load(scene_path)
+            width, height = _scene_size(scene, args)
+            camera = _camera(scene, args)
+            renderer = renderers.get((width, height))
+            if renderer is None:
+                renderer = renderers[(width, height)] = Renderer(width, height, device=info, config=config)
+            start = time.perf_counter()
+            frame = renderer.render(scene, camera)
+            wall_ms = (time.perf_counter() - start) * 1e3
+            _write_outputs(frame, image, args.aov, args)
+        except (CLIError, ValueError, OSError) as exc:     # SceneError is a ValueError
+            if n == 1 or _debug():
+                raise
+            failures += 1
+            message = _one_line(exc)
+            if scene_path not in message:
+                message = f"{scene_path}: {message}"
+            print(f"{PROG}: error: {message}", file=sys.stderr, flush=True)
+            continue
+        _note(args, f"[{index}/{n}] {scene_path} -> {image} ({wall_ms:.1f} ms, "
+                    f"{scene.triangle_count} triangles, {width}x{height})")
+        _note(args, "    " + _format_stats(frame.stats))
+    if failures:
+        print(f"{PROG}: error: {failures} of {n} scenes failed", file=sys.stderr, flush=True)
+        return 1
+    return 0
+
+
+def _format_stats(stats: dict) -> str:
+    passes = [(k[:-3], v) for k, v in stats.items() if k.endswith("_ms") and k != "total_ms"]
+    parts = [f"{name} {ms:.2f}" for name, ms in passes]
+    text = "passes (ms): " + ", ".join(parts)
+    if "total_ms" in stats:
+        text += f"; total {stats['total_ms']:.2f}"
+    extra = [f"{k} {stats[k]}" for k in ("prims", "tile_entries", "retries") if k in stats]
+    if extra:
+        text += "; " + ", ".join(extra)
+    return text
+
+
+def _device_record(d, default_id: Optional[str]) -> dict:
+    from . import capabilities
+    from .renderer import Renderer
+
+    record = {"id": d.id, "platform": d.platform, "name": d.name, "label": d.label,
+              "default": d.id == default_id}
+    try:
+        record.update(capabilities.summary(d.cl_device))
+    except Exception as exc:                     # a broken driver must not hide the others
+        record["summary_error"] = _one_line(exc)
+        record.update(_partial_summary(d.cl_device))
+    try:
+        Renderer(8, 8, device=d)
+        record["kernels"], record["kernels_error"] = "ok", None
+    except Exception as exc:
+        record["kernels"], record["kernels_error"] = "failed", _one_line(exc)
+    return record
+
+
+def _partial_summary(dev) -> dict:
+    """What capabilities.summary() would say, field by field, when it fails as a whole."""
+    import pyopencl as cl
+
+    from . import capabilities as c
+    getters = {
+        "type": lambda: cl.device_type.to_string(dev.type),
+        "version": lambda: dev.version,
+        "driver": lambda: dev.driver_version,
+        "compute_units": lambda: int(dev.max_compute_units),
+        "max_work_group_size": lambda: c.max_work_group_size(dev),
+        "max_work_item_sizes": lambda: list(dev.max_work_item_sizes),
+        "local_mem_bytes": lambda: c.local_mem_bytes(dev),
+        "global_mem_bytes": lambda: int(dev.global_mem_size),
+        "max_alloc_bytes": lambda: int(dev.max_mem_alloc_size),
+        "int64_atomics": lambda: c.has_int64_atomics(dev),
+        "image_support": lambda: bool(dev.image_support),
+        "correctly_rounded_divide": lambda: c.correctly_rounded_divide_sqrt(dev),
+        "simulator": lambda: c.is_simulator(dev),
+    }
+    out = {}
+    for key, get in getters.items():
+        try:
+            out[key] = get()
+        except Exception:
+            out[key] = None
+    return out
+
+
+def _bytes(n) -> str:
+    if not isinstance(n, int):
+        return "?"
+    for unit in ("B", "KiB", "MiB", "GiB", "TiB"):
+        if n < 1024 or unit == "TiB":
+            return f"{n:.0f} {unit}" if unit == "B" or n == int(n) else f"{n:.1f} {unit}"
+        n /= 1024
+    return "?"
+
+
+def cmd_devices(args) -> int:
+    from .device import DeviceError, default_device_info, list_devices
+
+    devices = list_devices()
+    if not devices:
+        raise CLIError("no OpenCL device found: install one, e.g. `pip install pocl-binary-distribution`")
+    try:
+        default_id = default_device_info().id
+    except DeviceError:
+        default_id = None
+    records = [_device_record(d, default_id) for d in devices]
+    if args.json:
+        print(json.dumps(records, indent=2))
+        return 0
+    header = ("", "ID", "TYPE", "DEVICE", "CU", "WG", "LOCAL", "GLOBAL", "MAX ALLOC", "I64 ATOM", "KERNELS")
+    rows = []
+    for r in records:
+        rows.append(("*" if r["default"] else "", r["id"], str(r.get("type") or "?").replace("ALL | ", ""), r["label"].split(" ", 1)[1],
+                     str(r.get("compute_units", "?")), str(r.get("max_work_group_size", "?")),
+                     _bytes(r.get("local_mem_bytes")), _bytes(r.get("global_mem_bytes")),
+                     _bytes(r.get("max_alloc_bytes")),
+                     {True: "yes", False: "no"}.get(r.get("int64_atomics"), "?"), r["kernels"]))
+    widths = [max(len(row[i]) for row in (header, *rows)) for i in range(len(header))]
+    for row in (header, *rows):
+        print("  ".join(cell.ljust(w) for cell, w in zip(row, widths)).rstrip())
+    for r in records:
+        if r["kernels_error"]:
+            print(f"{r['id']}: kernels failed: {r['kernels_error']}")
+        if r.get("summary_error"):
+            print(f"{r['id']}: capabilities unavailable: {r['summary_error']}")
+    if default_id is not None:
+        print("* default device (override with --device NAME or $CLRENDER_DEVICE)")
+    return 0
+
+
+def cmd_info(args) -> int:
+    path = Path(args.scene)
+    if not path.exists():
+        raise CLIError(f"{args.scene}: file not found")
+    scene = _load(args.scene)
+    summary = scene.summary()
+    summary["settings"] = scene.settings
+    if args.json:
+        print(json.dumps(summary, indent=2, default=_json_default))
+        return 0
+    s = summary
+    fmt = lambda v: ", ".join(f"{x:g}" for x in v)  # noqa: E731
+    lines = [
+        ("source", s["source"]),
+        ("triangles", s["triangles"]),
+        ("vertices", s["vertices"]),
+        ("meshes", s["meshes"]),
+        ("materials", f"{s['materials']} ({s['alpha_masked_materials']} alpha-masked, "
+                      f"{s['single_sided_materials']} single-sided)"),
+        ("textures", s["textures"] if not s["texture_sizes"] else
+         f"{s['textures']} ({', '.join(f'{w}x{h}' for w, h in s['texture_sizes'])})"),
+        ("bounds", f"min ({fmt(s['bounds_min'])})  max ({fmt(s['bounds_max'])})"),
+        ("camera", "none (a default camera frames the bounds)" if s["camera"] is None else
+         f"eye ({fmt(s['camera']['eye'])})  target ({fmt(s['camera']['target'])})  "
+         f"fov {s['camera']['fov_y_deg']:g} deg"),
+    ]
+    render = scene.settings.get("render") if isinstance(scene.settings, dict) else None
+    if render:
+        lines.append(("render", ", ".join(f"{k} {v}" for k, v in render.items())))
+    if isinstance(scene.settings, dict) and scene.settings.get("lights"):
+        lines.append(("lights", len(scene.settings["lights"])))
+    width = max(len(k) for k, _ in lines)
+    for k, v in lines:
+        print(f"{k.ljust(width)}  {v}")
+    return 0
+
+
+def _json_default(obj):
+    if isinstance(obj, np.ndarray):
+        return obj.tolist()
+    if isinstance(obj, np.generic):
+        return obj.item()
+    if dataclasses.is_dataclass(obj):
+        return dataclasses.asdict(obj)
+    return str(obj)
+
+
+# ---------------------------------------------------------------------------------------------
+def _debug() -> bool:
+    return os.environ.get(ENV_DEBUG, "").strip() not in ("", "0")
+
+
+def _one_line(exc: BaseException) -> str:
+    text = str(exc).strip()
+    if isinstance(exc, OSError) and exc.strerror:
+        text = f"{exc.filename}: {exc.strerror}" if exc.filename else exc.strerror
+    lines = [ln.strip() for ln in text.splitlines() if ln.strip()]
+    if not lines:
+        return type(exc).__name__
+    first = lines[0].rstrip(":")
+    if len(lines) > 1:
+        first += f" (set {ENV_DEBUG}=1 for details)"
+    return first
+
+
+def main(argv: Optional[Sequence[str]] = None) -> int:
+    argv = list(sys.argv[1:] if argv is None else argv)
+    try:
+        args = build_parser().parse_args(_join_vector_options(argv))
+        return int(args.func(args) or 0)
+    except SystemExit as exc:                    # --help / --version
+        return exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 1)
+    except KeyboardInterrupt:
+        print(f"{PROG}: interrupted", file=sys.stderr)
+        return 130
+    except CLIError as exc:
+        if _debug():
+            raise
+        print(f"{PROG}: error: {_one_line(exc)}", file=sys.stderr)
+        return exc.code
+    except Exception as exc:                     # SceneError, DeviceError, ValueError, OSError, cl.Error
+        if _debug():
+            raise
+        from .scene import SceneError
+        known = isinstance(exc, (SceneError, ValueError, OSError)) or type(exc).__name__ == "DeviceError"
+        message = _one_line(exc) if known else f"{type(exc).__name__}: {_one_line(exc)}"
+        print(f"{PROG}: error: {message}", file=sys.stderr)
+        return 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,67 @@
+/* vec.h: VEC-wide vector types for kernels that process VEC pixels per work-item.
+ * VEC = 1 on GPUs (one pixel per work-item, the hardware vectorizes across work-items);
+ * 8 or 16 on CPUs, where PoCL cannot vectorize across work-items through loops or library
+ * calls, so kernels use explicit vectors. Comparisons yield masks: -1/0 for vectors and 1/0
+ * for scalars, and both work with `select` and the ANY() macro below. */
+#ifndef CLRENDER_VEC_H
+#define CLRENDER_VEC_H
+
+#ifndef VEC
+#define VEC 8
+#endif
+
+#define CAT_(a, b) a##b
+#define CAT(a, b) CAT_(a, b)
+
+#if VEC == 1
+typedef int intV;
+typedef uint uintV;
+typedef long longV;
+typedef float floatV;
+#define LANES ((intV)0)
+#define convert_intV(x) ((int)(x))
+#define convert_uintV(x) ((uint)(x))
+#define convert_floatV(x) ((float)(x))
+#define convert_longV(x) ((long)(x))
+#define ANY(m) (m)
+#define LANE_I(v, i) (v)
+#define LANE_F(v, i) (v)
+#define LANE_L(v, i) (v)
+#define as_intV(x) as_int(x)
+#define as_uintV(x) as_uint(x)
+#define as_floatV(x) as_float(x)
+#define vloadV(i, p) ((p)[i])
+#define vstoreV(v, i, p) ((p)[i] = (v))
+#define vstore_halfV(v, i, p) vstore_half_rte((v), (i), (p))
+#else
+typedef CAT(int, VEC) intV;
+typedef CAT(uint, VEC) uintV;
+typedef CAT(long, VEC) longV;
+typedef CAT(float, VEC) floatV;
+#if VEC == 4
+#define LANES ((intV)(0, 1, 2, 3))
+#elif VEC == 8
+#define LANES ((intV)(0, 1, 2, 3, 4, 5, 6, 7))
+#elif VEC == 16
+#define LANES ((intV)(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15))
+#else
+#error "VEC must be 1, 4, 8 or 16"
+#endif
+#define convert_intV CAT(convert_int, VEC)
+#define convert_uintV CAT(convert_uint, VEC)
+#define convert_floatV CAT(convert_float, VEC)
+#define convert_longV CAT(convert_long, VEC)
+#define ANY(m) any(m)
+/* Lane access through the vector's storage (private memory). */
+#define LANE_I(v, i) (((int*)&(v))[i])
+#define LANE_F(v, i) (((float*)&(v))[i])
+#define LANE_L(v, i) (((long*)&(v))[i])
+#define as_intV CAT(as_int, VEC)
+#define as_uintV CAT(as_uint, VEC)
+#define as_floatV CAT(as_float, VEC)
+#define vloadV CAT(vload, VEC)
+#define vstoreV CAT(vstore, VEC)
+#define vstore_halfV CAT(CAT(vstore_half, VEC), _rte)
+#endif
+
+#endif
