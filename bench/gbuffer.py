@@ -1,0 +1,108 @@
+"""G-buffer benchmark: Crytek Sponza at 1280×720 from the fixed atrium camera.
+
+    python -m bench.gbuffer [--repeats 10] [--warmup 3] [--device NAME] [--tile-size 8 16 32] [--no-gl]
+
+Prints the median milliseconds per pass from OpenCL profiling events (setup = transform,
+clipping and triangle setup; binning; raster = fine rasterization into the visibility
+buffer; gbuffer = the G-buffer resolve), triangles per second, and — in the same run — the
+same G-buffer drawn by OpenGL (moderngl on Mesa llvmpipe through EGL, bench/gl_peer.py):
+the clrender/OpenGL time ratio and how closely the two G-buffers agree. Writes a JSON
+record and a side-by-side PNG under bench/results/.
+"""
+from __future__ import annotations
+
+import argparse
+import statistics
+import sys
+import time
+
+import numpy as np
+
+from bench.common import SPONZA, SPONZA_CAMERA, RESULTS, medians, require_scene, time_renders, write_record
+
+PASSES = ("setup", "binning", "raster", "gbuffer")
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--repeats", type=int, default=10)
+    ap.add_argument("--warmup", type=int, default=3)
+    ap.add_argument("--device", default=None)
+    ap.add_argument("--tile-size", type=int, nargs="+", default=[16])
+    ap.add_argument("--width", type=int, default=1280)
+    ap.add_argument("--height", type=int, default=720)
+    ap.add_argument("--no-gl", action="store_true", help="skip the OpenGL peer")
+    args = ap.parse_args(argv)
+
+    import clrender
+    t0 = time.perf_counter()
+    scene = clrender.load_scene(require_scene(SPONZA))
+    load_s = time.perf_counter() - t0
+    camera = clrender.Camera.look_at(**SPONZA_CAMERA)
+    print(f"Sponza: {scene.triangle_count:,} triangles, {len(scene.textures)} textures, loaded in {load_s:.1f} s")
+
+    record = {"scene": str(SPONZA.name), "width": args.width, "height": args.height, "repeats": args.repeats,
+              "warmup": args.warmup, "clrender": {}}
+    frames = {}
+    for tile in args.tile_size:
+        renderer = clrender.Renderer(args.width, args.height, device=args.device, tile_size=tile)
+        stats, walls, frame = time_renders(renderer, scene, camera, args.warmup, args.repeats)
+        med = medians(stats)
+        frames[tile] = frame
+        tris_per_s = scene.triangle_count / (med["total_ms"] * 1e-3)
+        record["clrender"][str(tile)] = {"device": renderer.device.name, "median_ms": med,
+                                         "wall_ms_median": statistics.median(walls),
+                                         "triangles_per_s": tris_per_s, "frames_ms": [s["total_ms"] for s in stats]}
+        print(f"\nclrender on {renderer.device.name}, tile {tile}×{tile} — median of {args.repeats} frames (ms):")
+        for p in PASSES:
+            print(f"  {p:<9} {med[p + '_ms']:8.2f}")
+        print(f"  {'total':<9} {med['total_ms']:8.2f}   (wall incl. readback: {statistics.median(walls):.1f} ms)")
+        print(f"  {tris_per_s / 1e6:.1f} M triangles/s; prims {int(med['prims']):,}; tile entries "
+              f"{int(med['tile_entries']):,}; culled: backface {int(med['culled_backface']):,}, offscreen "
+              f"{int(med['culled_offscreen']):,}, near {int(med['culled_near']):,}; clipped {int(med['clipped']):,}")
+
+    best_tile = min(record["clrender"], key=lambda t: record["clrender"][t]["median_ms"]["total_ms"])
+    clr_ms = record["clrender"][best_tile]["median_ms"]["total_ms"]
+    frame = frames[int(best_tile)]
+    if not args.no_gl:
+        record["opengl"] = run_gl_peer(scene, camera, args, frame, clr_ms)
+    path = write_record("gbuffer", record)
+    print(f"\nrecord: {path}")
+    return 0
+
+
+def run_gl_peer(scene, camera, args, frame, clr_ms) -> dict:
+    try:
+        from bench.gl_peer import GLPeer, compare_gbuffers
+        peer = GLPeer(args.width, args.height)
+    except Exception as exc:                     # no EGL / moderngl: say so, keep the clrender numbers
+        print(f"\nOpenGL peer unavailable: {exc}")
+        return {"error": str(exc)}
+    peer.upload(scene)
+    gl_times = peer.time_frame(camera, repeats=args.repeats, warmup=args.warmup)
+    gl_ms = statistics.median(gl_times)
+    gl = peer.render(camera)
+    ours = {"depth": frame.depth, "normal": frame.normal, "albedo": frame.albedo, "triangle_id": frame.triangle_id}
+    agreement = compare_gbuffers(ours, gl)
+    print(f"\nOpenGL peer ({peer.renderer}): median {gl_ms:.1f} ms per frame (draw + glFinish)")
+    print(f"  clrender / OpenGL time ratio: {clr_ms / gl_ms:.2f}")
+    for key in sorted(agreement):
+        value = agreement[key]
+        print(f"  {key:<34} {value:.4f}" if isinstance(value, float) else f"  {key:<34} {value}")
+    save_side_by_side(frame, gl)
+    return {"renderer": peer.renderer, "median_ms": gl_ms, "frames_ms": gl_times, "ratio": clr_ms / gl_ms,
+            "agreement": agreement}
+
+
+def save_side_by_side(frame, gl) -> None:
+    import imageio.v3 as iio
+    from clrender.gbuffer import linear_to_srgb8
+    top = np.concatenate([frame.image, linear_to_srgb8(gl["albedo"])], 1)
+    bottom = np.concatenate([((frame.normal * 0.5 + 0.5) * 255).astype(np.uint8),
+                             ((np.nan_to_num(gl["normal"]) * 0.5 + 0.5) * 255).astype(np.uint8)], 1)
+    RESULTS.mkdir(parents=True, exist_ok=True)
+    iio.imwrite(RESULTS / "gbuffer-clrender-vs-opengl.png", np.concatenate([top, bottom], 0)[::2, ::2])
+
+
+if __name__ == "__main__":
+    sys.exit(main())

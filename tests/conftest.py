@@ -1,0 +1,107 @@
+"""Shared pytest configuration: OpenCL device selection and the renderer factory.
+
+--device NAME|all   which OpenCL devices the `device` fixture runs on (default: $CLRENDER_TEST_DEVICE,
+                    else `all` = every device except simulators such as Oclgrind, which only run
+                    when named). NAME is a case-insensitive substring of "platform / device" or "P:D".
+
+OpenCL is touched only when a collected test actually uses `device` (directly or through
+`make_renderer`), so the pure-NumPy tests collect and run without it.
+"""
+from __future__ import annotations
+
+import os
+import sys
+
+import pytest
+
+# tests/ on sys.path so `from reference.raster import ...` works under any import mode.
+_TESTS_DIR = os.path.dirname(os.path.abspath(__file__))
+if _TESTS_DIR not in sys.path:
+    sys.path.insert(0, _TESTS_DIR)
+
+ENV_TEST_DEVICE = "CLRENDER_TEST_DEVICE"
+
+
+def pytest_addoption(parser):
+    parser.addoption(
+        "--device", action="store", default=None, metavar="NAME|all",
+        help=f"OpenCL device(s) for device tests: 'all' (no simulators), or a case-insensitive substring "
+             f"of 'platform / device', or 'P:D'. Default: ${ENV_TEST_DEVICE}, else 'all'.")
+
+
+def _device_spec(config) -> tuple[str, bool]:
+    """(spec, explicit): explicit when given by --device or the environment."""
+    spec = config.getoption("--device")
+    if spec:
+        return spec, True
+    spec = os.environ.get(ENV_TEST_DEVICE, "").strip()
+    if spec:
+        return spec, True
+    return "all", False
+
+
+def _selected_devices(config):
+    """[(DeviceInfo, None)] or [(None, reason to skip)]; computed once per session."""
+    cached = getattr(config, "_clrender_devices", None)
+    if cached is not None:
+        return cached
+    spec, explicit = _device_spec(config)
+    try:
+        from clrender.device import select_devices     # lazy: imports pyopencl
+    except ImportError as exc:
+        result = [(None, f"OpenCL unavailable ({exc})")]
+    else:
+        try:
+            devices = list(select_devices(spec))
+        except Exception as exc:                        # no platform / no match
+            if explicit and spec.lower() != "all":
+                raise pytest.UsageError(f"--device {spec!r}: {exc}") from None
+            result = [(None, f"no OpenCL device: {exc}")]
+        else:
+            if not devices:
+                if explicit and spec.lower() != "all":
+                    raise pytest.UsageError(f"--device {spec!r} matches no OpenCL device")
+                result = [(None, "no OpenCL device found")]
+            else:
+                result = [(d, None) for d in devices]
+    config._clrender_devices = result
+    return result
+
+
+def pytest_generate_tests(metafunc):
+    if "device" not in metafunc.fixturenames:
+        return
+    params, ids = [], []
+    for info, why in _selected_devices(metafunc.config):
+        if info is None:
+            params.append(pytest.param(None, marks=pytest.mark.skip(reason=why)))
+            ids.append("no-device")
+        else:
+            params.append(info)
+            ids.append(info.label)
+    metafunc.parametrize("device", params, ids=ids, indirect=True, scope="session")
+
+
+@pytest.fixture(scope="session")
+def device(request):
+    """One selected OpenCL device (a clrender.device.DeviceInfo: `.id` "P:D", `.label`)."""
+    return request.param
+
+
+@pytest.fixture(scope="session")
+def make_renderer(device):
+    """Factory `make_renderer(width, height, **opts) -> clrender.Renderer` on `device`.
+
+    Renderers are cached per (width, height, opts) for the session (building one compiles
+    the kernels); render() must not depend on earlier calls, which the determinism test checks."""
+    import clrender
+
+    cache = {}
+
+    def factory(width, height, **opts):
+        key = (int(width), int(height), repr(sorted(opts.items())))
+        if key not in cache:
+            cache[key] = clrender.Renderer(width=width, height=height, device=device.id, **opts)
+        return cache[key]
+
+    return factory
