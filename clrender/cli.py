@@ -18,6 +18,7 @@ import os
 import sys
 import tempfile
 import time
+import warnings
 from pathlib import Path
 from typing import Optional, Sequence
 
@@ -252,7 +253,8 @@ def _exr_available() -> bool:
         saved = os.environ.get("IMAGEIO_NO_INTERNET")
         os.environ["IMAGEIO_NO_INTERNET"] = "1"
         try:
-            with tempfile.TemporaryDirectory() as tmp:
+            with tempfile.TemporaryDirectory() as tmp, warnings.catch_warnings():
+                warnings.simplefilter("ignore")      # imageio's deprecated legacy plugins load here
                 iio.imwrite(os.path.join(tmp, "probe.exr"), np.zeros((2, 2, 3), np.float32), extension=".exr")
             _EXR_STATE["available"] = True
         except Exception:

@@ -557,6 +557,11 @@ def _camera(doc: _Doc, order: list[int], tm_scene, scene: Scene) -> Optional[Cam
     return None
 
 
+def _needs_own_reader(accessor: dict) -> bool:
+    """trimesh ignores sparse data and the `normalized` flag: read those accessors ourselves."""
+    return "sparse" in accessor or accessor.get("componentType") != 5126
+
+
 # -- entry point -------------------------------------------------------------------------------------------
 def load_gltf(path) -> Scene:
     path = Path(path)
@@ -609,13 +614,13 @@ def load_gltf(path) -> Scene:
             if len(positions) != nv:
                 raise doc.err(f"internal: trimesh returned {len(positions)} vertices for {what}, "
                               f"the POSITION accessor has {nv}")
-            if "sparse" in accessors[attrs["POSITION"]]:  # trimesh does not apply sparse data
+            if _needs_own_reader(accessors[attrs["POSITION"]]):
                 positions = doc.accessor(attrs["POSITION"]).astype(np.float64)
             check_faces(faces, nv, path, what)
             normals = None
             if "NORMAL" in attrs:
                 normals = trimesh_vertex_normals(geom)
-                if normals is None or "sparse" in accessors[attrs["NORMAL"]]:
+                if normals is None or _needs_own_reader(accessors[attrs["NORMAL"]]):
                     normals = doc.accessor(attrs["NORMAL"]).astype(np.float64)
             uvs = doc.accessor(attrs["TEXCOORD_0"]) if "TEXCOORD_0" in attrs else None
             if "material" in prim:
