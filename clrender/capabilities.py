@@ -28,7 +28,8 @@ def max_work_group_size(dev: cl.Device) -> int:
 
 
 def local_mem_bytes(dev: cl.Device) -> int:
-    return int(dev.local_mem_size) if dev.local_mem_type != cl.device_local_mem_type.NONE else 0
+    # CL_NONE (0) means no dedicated local memory; pyopencl names only LOCAL and GLOBAL.
+    return int(dev.local_mem_size) if int(dev.local_mem_type) != 0 else 0
 
 
 def has_int64_atomics(dev: cl.Device) -> bool:
@@ -83,7 +84,8 @@ def build_options(dev: cl.Device) -> list[str]:
 def summary(dev: cl.Device) -> dict:
     """The limits clrender relies on, for `clrender devices` and reports."""
     return {
-        "type": cl.device_type.to_string(dev.type),
+        "type": "GPU" if is_gpu(dev) else "CPU" if is_cpu(dev) else "ACCELERATOR"
+                if dev.type & cl.device_type.ACCELERATOR else "OTHER",
         "version": dev.version,
         "driver": dev.driver_version,
         "compute_units": int(dev.max_compute_units),

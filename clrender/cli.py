@@ -28,9 +28,13 @@ PROG = "clrender"
 ENV_DEBUG = "CLRENDER_DEBUG"
 DEFAULT_SIZE = (1280, 720)
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg")
-# AOVs the CLI writes (Frame.aov names); `image` is the main output, not an AOV.
-AOVS = ("depth", "linear_depth", "normal", "albedo", "specular_intensity", "specular_power",
-        "triangle_id", "velocity")
+# AOVs the CLI writes: every Frame AOV but `image`, which is the main output.
+def _aov_names():
+    from .renderer import Frame
+    return tuple(n for n in Frame.AOV_NAMES if n != "image")
+
+
+AOVS = _aov_names()
 INT_AOVS = ("triangle_id",)
 
 

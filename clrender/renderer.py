@@ -43,6 +43,9 @@ class Frame:
     far: float
     stats: dict = field(default_factory=dict)
 
+    AOV_NAMES = ("depth", "linear_depth", "normal", "albedo", "triangle_id", "velocity",
+                 "specular_intensity", "specular_power", "image")
+
     @property
     def height(self) -> int:
         return int(self.gbuffer.shape[1])
@@ -99,10 +102,8 @@ class Frame:
         return layout.linear_to_srgb8(self.albedo)
 
     def aov(self, name: str) -> np.ndarray:
-        names = ("depth", "linear_depth", "normal", "albedo", "triangle_id", "velocity",
-                 "specular_intensity", "specular_power", "image")
-        if name not in names:
-            raise ValueError(f"unknown AOV {name!r}; available: {', '.join(names)}")
+        if name not in self.AOV_NAMES:
+            raise ValueError(f"unknown AOV {name!r}; available: {', '.join(self.AOV_NAMES)}")
         return getattr(self, name)
 
 

@@ -125,3 +125,9 @@ def test_layout_markdown_lists_every_field():
     md = gb.layout_markdown()
     for f in gb.LAYOUT:
         assert f"`{f.name}`" in md
+
+
+def test_readme_layout_table_is_generated_from_the_layout():
+    readme = (Path(__file__).resolve().parents[1] / "README.md").read_text()
+    start, end = readme.index("<!-- gbuffer-layout -->"), readme.index("<!-- /gbuffer-layout -->")
+    assert readme[start:end].split("\n", 1)[1].strip() == gb.layout_markdown()
