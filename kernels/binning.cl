@@ -45,8 +45,11 @@ static int4 tile_range(const Prim* p, int width, int height)
     return (int4)(px0 / TILE, py0 / TILE, px1 / TILE, py1 / TILE);
 }
 
-kernel void bin_count(global const Prim* prims, global const int* prim_total, int capacity,
-                      int width, int height, int tiles_x, global int* tile_counts)
+/* Walks the tiles prim i overlaps. Count mode (tile_prims == 0): tile_counts[t]++.
+ * Fill mode: append i to tile t's list at tile_offsets[t] + tile_cursor[t]++. */
+static void walk_tiles(global const Prim* prims, global const int* prim_total, int capacity,
+                       int width, int height, int tiles_x, global int* tile_counter,
+                       global const int* tile_offsets, int list_capacity, global int* tile_prims)
 {
     int i = get_global_id(0);
     if (i >= min(prim_total[0], capacity)) return;
@@ -54,9 +57,20 @@ kernel void bin_count(global const Prim* prims, global const int* prim_total, in
     int4 r = tile_range(&p, width, height);
     bool test = (r.z > r.x) && (r.w > r.y);
     for (int ty = r.y; ty <= r.w; ++ty)
-        for (int tx = r.x; tx <= r.z; ++tx)
-            if (!test || tile_may_overlap(&p, tx, ty))
-                atomic_inc(&tile_counts[ty * tiles_x + tx]);
+        for (int tx = r.x; tx <= r.z; ++tx) {
+            if (test && !tile_may_overlap(&p, tx, ty)) continue;
+            int t = ty * tiles_x + tx;
+            int slot = atomic_inc(&tile_counter[t]);
+            if (!tile_prims) continue;
+            slot += tile_offsets[t];
+            if (slot < list_capacity) tile_prims[slot] = i;   /* overflow: host grows and retries */
+        }
+}
+
+kernel void bin_count(global const Prim* prims, global const int* prim_total, int capacity,
+                      int width, int height, int tiles_x, global int* tile_counts)
+{
+    walk_tiles(prims, prim_total, capacity, width, height, tiles_x, tile_counts, 0, 0, 0);
 }
 
 kernel void bin_fill(global const Prim* prims, global const int* prim_total, int capacity,
@@ -64,16 +78,6 @@ kernel void bin_fill(global const Prim* prims, global const int* prim_total, int
                      global const int* tile_offsets, global int* tile_cursor,
                      int list_capacity, global int* tile_prims)
 {
-    int i = get_global_id(0);
-    if (i >= min(prim_total[0], capacity)) return;
-    Prim p = prims[i];
-    int4 r = tile_range(&p, width, height);
-    bool test = (r.z > r.x) && (r.w > r.y);
-    for (int ty = r.y; ty <= r.w; ++ty)
-        for (int tx = r.x; tx <= r.z; ++tx)
-            if (!test || tile_may_overlap(&p, tx, ty)) {
-                int t = ty * tiles_x + tx;
-                int slot = tile_offsets[t] + atomic_inc(&tile_cursor[t]);
-                if (slot < list_capacity) tile_prims[slot] = i;   /* overflow: host grows and retries */
-            }
+    walk_tiles(prims, prim_total, capacity, width, height, tiles_x, tile_cursor,
+               tile_offsets, list_capacity, tile_prims);
 }

@@ -5,12 +5,13 @@
  * when a vertex lies outside it, against the guard band |x|,|y| <= G·w that keeps fixed-point
  * edge functions inside 64 bits; fan-triangulate; snap each piece to 24.8 fixed point; orient
  * it so area > 0; drop degenerate, back-facing (single-sided materials) and off-screen pieces.
- * `setup_count` writes how many prims each triangle yields and why it yields none; a prefix
- * sum turns counts into offsets; `setup_emit` repeats the same arithmetic and writes the prims.
+ * `setup_count` writes how many prims each triangle yields (and why it yields none) and stages
+ * the first prim per triangle; a prefix sum turns counts into offsets; `setup_emit` copies the
+ * staged prim of single-prim triangles and recomputes only the rare multi-prim (clipped) ones.
  *
  * Buffers: positions float[3V] world space; triangles int[3T]; tri_material int[T];
  *          materials Material[M]; view_proj float[16] row-major.
- *          out: prim_count int[T], status uchar[T] (STATUS_*), prims Prim[capacity].
+ *          out: prim_count int[T], status uchar[T] (STATUS_*), staged Prim[T], prims Prim[capacity].
  * Work-groups: 1-D, any size; no local memory, no barriers.
  */
 #pragma OPENCL FP_CONTRACT OFF
@@ -178,13 +179,13 @@ static int setup_triangle(int t, global const float* positions, global const int
 kernel void setup_count(global const float* positions, global const int* triangles,
                         global const int* tri_material, global const Material* materials,
                         global const float* view_proj, int n_tris, int width, int height, float near,
-                        global int* prim_count, global uchar* status)
+                        global int* prim_count, global uchar* status, global Prim* staged)
 {
     int t = get_global_id(0);
     if (t >= n_tris) return;
     uchar s;
     prim_count[t] = setup_triangle(t, positions, triangles, tri_material, materials, view_proj,
-                                   width, height, near, 0, 0, &s);
+                                   width, height, near, staged + t, 1, &s);
     status[t] = s;
 }
 
@@ -192,13 +193,17 @@ kernel void setup_emit(global const float* positions, global const int* triangle
                        global const int* tri_material, global const Material* materials,
                        global const float* view_proj, int n_tris, int width, int height, float near,
                        global const int* prim_offset, global const int* prim_count,
-                       int capacity, global Prim* prims)
+                       global const Prim* staged, int capacity, global Prim* prims)
 {
     int t = get_global_id(0);
     if (t >= n_tris || prim_count[t] == 0) return;
     int offset = prim_offset[t];
     int room = capacity - offset;       /* overflow is detected on the host from the total */
     if (room <= 0) return;
+    if (prim_count[t] == 1) {
+        prims[offset] = staged[t];
+        return;
+    }
     uchar s;
     setup_triangle(t, positions, triangles, tri_material, materials, view_proj,
                    width, height, near, prims + offset, room, &s);

@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from clrender import cli
+from clrender import aov_io, cli
 
 REPO = Path(__file__).resolve().parent.parent
 
@@ -300,22 +300,22 @@ def test_info_json(quad, tmp_path, capsys):
 def test_previews():
     ids = np.array([[-1, 0, 1], [7, 7, -1]], np.int32)
     bg = ids < 0
-    colors = cli.preview("triangle_id", ids, bg)
+    colors = aov_io.preview("triangle_id", ids, bg)
     assert colors.shape == (2, 3, 3) and colors.dtype == np.uint8
     assert (colors[bg] == 0).all() and (colors[~bg].max(-1) > 0).all()
     assert (colors[1, 0] == colors[1, 1]).all() and not (colors[0, 1] == colors[0, 2]).all()
-    np.testing.assert_array_equal(colors, cli.preview("triangle_id", ids, bg))   # stable
+    np.testing.assert_array_equal(colors, aov_io.preview("triangle_id", ids, bg))   # stable
 
     depth = np.array([[np.inf, 1.0, 2.0], [3.0, 3.0, np.inf]], np.float32)
-    gray = cli.preview("depth", depth, bg)
+    gray = aov_io.preview("depth", depth, bg)
     assert (gray[bg] == 0).all() and gray[0, 1] == 255 and 0 < gray[1, 0] < gray[0, 2] < gray[0, 1]
 
-    still = cli.preview("velocity", np.zeros((2, 3, 2), np.float32), bg)
+    still = aov_io.preview("velocity", np.zeros((2, 3, 2), np.float32), bg)
     assert (still == 0).all()
-    moving = cli.preview("velocity", np.array([[[1, 0], [-1, 0], [0, 1]]] * 2, np.float32), bg)
+    moving = aov_io.preview("velocity", np.array([[[1, 0], [-1, 0], [0, 1]]] * 2, np.float32), bg)
     assert len({tuple(c) for c in moving[0]}) == 3
 
-    normal = cli.preview("normal", np.array([[[0, 0, 1]] * 3] * 2, np.float32), bg)
+    normal = aov_io.preview("normal", np.array([[[0, 0, 1]] * 3] * 2, np.float32), bg)
     assert (normal[bg] == 0).all() and (normal[0, 1] == (128, 128, 255)).all()
 
 

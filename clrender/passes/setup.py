@@ -28,6 +28,7 @@ class SetupPass(RenderPass):
             self.prim_count = zeros(self.queue, n, np.int32)
             self.prim_offset = zeros(self.queue, n, np.int32)
             self.status = zeros(self.queue, n, np.uint8)
+            self.staged = empty(self.queue, n, structs.prim_dtype)   # first prim of each triangle
             # Most triangles yield at most one prim; clipping can yield more (grown on demand).
             self._allocate_prims(max(1024, n + n // 8))
 
@@ -49,10 +50,11 @@ class SetupPass(RenderPass):
                   res["materials"].data, res["view_proj"].data, np.int32(n), np.int32(w), np.int32(h),
                   np.float32(res["near"]))
         gsize = (round_up(n, 64),)
-        self.count_kernel(self.queue, gsize, None, *common, self.prim_count.data, self.status.data)
+        self.count_kernel(self.queue, gsize, None, *common, self.prim_count.data, self.status.data,
+                          self.staged.data)
         self.scan(self.prim_count, self.prim_offset, self.prim_total, size=n, queue=self.queue)
         self.emit_kernel(self.queue, gsize, None, *common, self.prim_offset.data, self.prim_count.data,
-                         np.int32(self.capacity), self.prims.data)
+                         self.staged.data, np.int32(self.capacity), self.prims.data)
 
     def overflows(self):
         return [Overflow("prims", self.prim_total, self.capacity)]

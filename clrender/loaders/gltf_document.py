@@ -1,0 +1,383 @@
+"""Reading a glTF 2.0 file (.gltf or .glb) into a validated `Document`.
+
+`load_document(path)` parses the JSON (or the GLB container's JSON and BIN chunks), loads every
+buffer (GLB chunk, data URI or external file) and checks what the loader relies on: buffer views
+and accessor ranges inside their buffers, every index into every array, attribute types and
+counts, primitive modes, node transforms, sampler wrap modes and material alpha modes. Bad input
+is a `SceneError` naming the file and the offending element, never a KeyError or a trimesh
+traceback. `Document.accessor(i)` then decodes an accessor (strided, sparse, normalized) to NumPy.
+"""
+from __future__ import annotations
+
+import base64
+import binascii
+import json
+import struct
+from pathlib import Path
+from typing import Optional
+from urllib.parse import unquote
+
+import numpy as np
+
+from ..scene import SceneError
+from .common import fail
+
+COMPONENT_TYPES = {5120: "<i1", 5121: "<u1", 5122: "<i2", 5123: "<u2", 5125: "<u4", 5126: "<f4"}
+TYPE_SIZES = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4, "MAT2": 4, "MAT3": 9, "MAT4": 16}
+WRAP_MODES = {10497: "repeat", 33071: "clamp", 33648: "mirror"}
+MODE_TRIANGLES, MODE_STRIP, MODE_FAN = 4, 5, 6
+# required extensions whose absence changes geometry or textures: refuse the file
+UNSUPPORTED_REQUIRED = {"KHR_draco_mesh_compression", "EXT_meshopt_compression", "KHR_texture_basisu",
+                        "MSFT_texture_dds", "EXT_mesh_gpu_instancing", "KHR_mesh_quantization"}
+GLB_MAGIC, GLB_JSON, GLB_BIN = 0x46546C67, 0x4E4F534A, 0x004E4942
+
+
+class Document:
+    """A parsed and validated glTF document with its buffers in memory."""
+
+    def __init__(self, path: Path):
+        self.path = path
+        self.base = path.parent
+        self.json: dict = {}
+        self.buffers: list[bytes] = []
+        self.glb_bin: Optional[bytes] = None
+        self._accessor_cache: dict[int, np.ndarray] = {}
+
+    def err(self, message: str) -> SceneError:
+        return fail(self.path, message)
+
+    def list(self, key: str) -> list:
+        value = self.json.get(key, [])
+        if not isinstance(value, list):
+            raise self.err(f"top-level {key!r} must be an array")
+        return value
+
+    def get(self, key: str, index, what: str) -> dict:
+        items = self.list(key)
+        if not isinstance(index, int) or isinstance(index, bool) or not 0 <= index < len(items):
+            raise self.err(f"{what} references {key}[{index!r}], which does not exist "
+                           f"(there are {len(items)})")
+        item = items[index]
+        if not isinstance(item, dict):
+            raise self.err(f"{key}[{index}] must be an object")
+        return item
+
+    # -- buffers ------------------------------------------------------------------------------
+    def view_bytes(self, index: int) -> memoryview:
+        view = self.json["bufferViews"][index]
+        start = view.get("byteOffset", 0)
+        return memoryview(self.buffers[view["buffer"]])[start:start + view["byteLength"]]
+
+    def accessor(self, index: int) -> np.ndarray:
+        """(count, components) array; normalized integers become float32 per the spec."""
+        if index in self._accessor_cache:
+            return self._accessor_cache[index]
+        acc = self.json["accessors"][index]
+        dtype = np.dtype(COMPONENT_TYPES[acc["componentType"]])
+        ncomp = TYPE_SIZES[acc["type"]]
+        count = acc["count"]
+        if "bufferView" in acc:
+            arr = _strided(self.view_bytes(acc["bufferView"]), acc.get("byteOffset", 0),
+                           self.json["bufferViews"][acc["bufferView"]].get("byteStride"),
+                           dtype, ncomp, count)
+        else:
+            arr = np.zeros((count, ncomp), dtype)
+        sparse = acc.get("sparse")
+        if sparse:
+            arr = arr.copy()
+            idx_info, val_info = sparse["indices"], sparse["values"]
+            n = sparse["count"]
+            idx = _strided(self.view_bytes(idx_info["bufferView"]), idx_info.get("byteOffset", 0), None,
+                           np.dtype(COMPONENT_TYPES[idx_info["componentType"]]), 1, n)[:, 0]
+            vals = _strided(self.view_bytes(val_info["bufferView"]), val_info.get("byteOffset", 0), None,
+                            dtype, ncomp, n)
+            if n and idx.max() >= count:
+                raise self.err(f"accessor {index}: sparse index {int(idx.max())} out of range ({count})")
+            arr[idx.astype(np.int64)] = vals
+        if acc.get("normalized") and dtype.kind in "iu":
+            info = np.iinfo(dtype)
+            arr = arr.astype(np.float32) / np.float32(info.max)
+            if dtype.kind == "i":
+                arr = np.maximum(arr, np.float32(-1.0))
+        arr.setflags(write=False)
+        self._accessor_cache[index] = arr
+        return arr
+
+
+def _strided(buf: memoryview, offset: int, stride: Optional[int], dtype: np.dtype, ncomp: int,
+             count: int) -> np.ndarray:
+    elem = dtype.itemsize * ncomp
+    if count == 0:
+        return np.zeros((0, ncomp), dtype)
+    if not stride or stride == elem:
+        return np.frombuffer(buf, dtype=dtype, count=count * ncomp, offset=offset).reshape(count, ncomp)
+    raw = np.frombuffer(buf, dtype=np.uint8, count=(count - 1) * stride + elem, offset=offset)
+    rows = np.lib.stride_tricks.as_strided(raw, (count, elem), (stride, 1))
+    return np.ascontiguousarray(rows).view(dtype).reshape(count, ncomp)
+
+
+# -- reading and validation -----------------------------------------------------------------------
+def load_document(path) -> Document:
+    """Read and validate `path` (a .gltf or .glb): `read_document` then `validate`."""
+    doc = read_document(Path(path))
+    validate(doc)
+    return doc
+
+
+def read_document(path: Path) -> Document:
+    """The JSON (and GLB binary chunk) of `path`; buffers are loaded by `validate`."""
+    doc = Document(path)
+    try:
+        data = path.read_bytes()
+    except OSError as exc:
+        raise doc.err(f"cannot read file ({exc.strerror or exc})") from None
+    if data[:4] == b"glTF":
+        text = _read_glb(doc, data)
+    elif path.suffix.lower() == ".glb":
+        raise doc.err("not a binary glTF file (the GLB magic 'glTF' is missing)")
+    else:
+        text = data
+    try:
+        doc.json = json.loads(text.decode("utf-8-sig") if isinstance(text, bytes) else text)
+    except UnicodeDecodeError as exc:
+        raise doc.err(f"the glTF JSON is not UTF-8 ({exc.reason} at byte {exc.start})") from None
+    except json.JSONDecodeError as exc:
+        raise doc.err(f"invalid glTF JSON: {exc.msg} (line {exc.lineno}, column {exc.colno})") from None
+    if not isinstance(doc.json, dict):
+        raise doc.err("the glTF JSON must be an object")
+    return doc
+
+
+def _read_glb(doc: Document, data: bytes) -> bytes:
+    if len(data) < 20:
+        raise doc.err(f"GLB file is truncated ({len(data)} bytes)")
+    magic, version, length = struct.unpack_from("<3I", data, 0)
+    if version != 2:
+        raise doc.err(f"GLB container version {version} is not supported (glTF 2.0 needs 2)")
+    if length > len(data):
+        raise doc.err(f"GLB header says {length} bytes but the file has {len(data)}")
+    pos, text = 12, None
+    while pos + 8 <= length:
+        chunk_len, chunk_type = struct.unpack_from("<2I", data, pos)
+        start, end = pos + 8, pos + 8 + chunk_len
+        if end > length:
+            raise doc.err(f"GLB chunk at byte {pos} ({chunk_len} bytes) runs past the end of the file")
+        if text is None:
+            if chunk_type != GLB_JSON:
+                raise doc.err("the first GLB chunk is not JSON")
+            text = data[start:end]
+        elif chunk_type == GLB_BIN and doc.glb_bin is None:
+            doc.glb_bin = data[start:end]
+        pos = end
+    if text is None:
+        raise doc.err("GLB file has no JSON chunk")
+    return text
+
+
+def validate(doc: Document) -> None:
+    """Load the buffers and check every index, range and type the loader relies on; any
+    malformed input becomes a SceneError naming the file."""
+    try:
+        _validate_inner(doc)
+    except SceneError:
+        raise
+    except (KeyError, TypeError, ValueError, AttributeError, IndexError) as exc:
+        detail = f"missing property {exc}" if isinstance(exc, KeyError) else f"{type(exc).__name__}: {exc}"
+        raise doc.err(f"malformed glTF ({detail})") from None
+
+
+def _int(value, what: str, doc: Document, minimum: int = 0) -> int:
+    if not isinstance(value, int) or isinstance(value, bool) or value < minimum:
+        raise doc.err(f"{what} must be an integer >= {minimum}, got {value!r}")
+    return value
+
+
+def _validate_inner(doc: Document) -> None:
+    j = doc.json
+    version = str(j.get("asset", {}).get("version", ""))
+    if not version.startswith("2"):
+        raise doc.err(f"only glTF 2.0 is supported (asset.version is {version or 'missing'!r})")
+    required = set(j.get("extensionsRequired", []) or [])
+    bad = sorted(required & UNSUPPORTED_REQUIRED)
+    if bad:
+        raise doc.err(f"requires unsupported glTF extension(s): {', '.join(bad)}")
+
+    # buffers
+    for k, buf in enumerate(doc.list("buffers")):
+        length = _int(buf.get("byteLength"), f"buffers[{k}].byteLength", doc)
+        uri = buf.get("uri")
+        if uri is None:
+            if k == 0 and doc.glb_bin is not None:
+                data = doc.glb_bin
+            else:
+                raise doc.err(f"buffer {k} has no uri (and there is no GLB binary chunk for it)")
+        elif uri.startswith("data:"):
+            data = data_uri(doc, uri, f"buffer {k}")
+        else:
+            file = doc.base / unquote(uri)
+            if not file.is_file():
+                raise doc.err(f"buffer {k}: file not found: {file}")
+            data = file.read_bytes()
+        if len(data) < length:
+            raise doc.err(f"buffer {k} ({uri or 'GLB chunk'}) has {len(data)} bytes, "
+                          f"but its byteLength is {length}")
+        doc.buffers.append(data[:length] if len(data) > length else data)
+
+    # buffer views
+    for v, view in enumerate(doc.list("bufferViews")):
+        b = view.get("buffer")
+        doc.get("buffers", b, f"bufferViews[{v}]")
+        off = _int(view.get("byteOffset", 0), f"bufferViews[{v}].byteOffset", doc)
+        length = _int(view.get("byteLength"), f"bufferViews[{v}].byteLength", doc)
+        if off + length > len(doc.buffers[b]):
+            raise doc.err(f"bufferView {v} (bytes {off}..{off + length}) runs past the end of buffer {b} "
+                          f"({len(doc.buffers[b])} bytes)")
+        if "byteStride" in view:
+            _int(view["byteStride"], f"bufferViews[{v}].byteStride", doc, 1)
+
+    # accessors
+    for a, acc in enumerate(doc.list("accessors")):
+        if acc.get("componentType") not in COMPONENT_TYPES:
+            raise doc.err(f"accessor {a}: unknown componentType {acc.get('componentType')!r}")
+        if acc.get("type") not in TYPE_SIZES:
+            raise doc.err(f"accessor {a}: unknown type {acc.get('type')!r}")
+        count = _int(acc.get("count"), f"accessors[{a}].count", doc)
+        elem = np.dtype(COMPONENT_TYPES[acc["componentType"]]).itemsize * TYPE_SIZES[acc["type"]]
+        if "bufferView" in acc:
+            view = doc.get("bufferViews", acc["bufferView"], f"accessor {a}")
+            _check_range(doc, f"accessor {a}", acc["bufferView"], view,
+                         _int(acc.get("byteOffset", 0), f"accessors[{a}].byteOffset", doc),
+                         view.get("byteStride") or elem, elem, count)
+        sparse = acc.get("sparse")
+        if sparse:
+            n = _int(sparse.get("count"), f"accessors[{a}].sparse.count", doc)
+            for part, size in (("indices", None), ("values", elem)):
+                info = sparse[part]
+                if part == "indices":
+                    if info.get("componentType") not in (5121, 5123, 5125):
+                        raise doc.err(f"accessor {a}: bad sparse index componentType")
+                    size = np.dtype(COMPONENT_TYPES[info["componentType"]]).itemsize
+                view = doc.get("bufferViews", info.get("bufferView"), f"accessor {a} sparse {part}")
+                _check_range(doc, f"accessor {a} sparse {part}", info["bufferView"], view,
+                             info.get("byteOffset", 0), size, size, n)
+
+    accessors = doc.list("accessors")
+
+    def accessor_ref(index, what):
+        return doc.get("accessors", index, what)
+
+    # meshes
+    for m, mesh in enumerate(doc.list("meshes")):
+        prims = mesh.get("primitives")
+        if not isinstance(prims, list):
+            raise doc.err(f"mesh {m} has no primitives array")
+        for p, prim in enumerate(prims):
+            what = f"mesh {m} ({mesh.get('name', '')!r}) primitive {p}"
+            attrs = prim.get("attributes")
+            if not isinstance(attrs, dict):
+                raise doc.err(f"{what} has no attributes")
+            for name, idx in attrs.items():
+                accessor_ref(idx, f"{what} attribute {name}")
+            mode = prim.get("mode", MODE_TRIANGLES)
+            if mode not in range(7):
+                raise doc.err(f"{what}: unknown mode {mode!r}")
+            if "material" in prim:
+                doc.get("materials", prim["material"], what)
+            if mode not in (MODE_TRIANGLES, MODE_STRIP, MODE_FAN):
+                continue  # points and lines are not rendered
+            if "POSITION" not in attrs:
+                raise doc.err(f"{what} has no POSITION attribute")
+            pos = accessors[attrs["POSITION"]]
+            if pos["type"] != "VEC3":
+                raise doc.err(f"{what}: POSITION must be VEC3, got {pos['type']}")
+            nv = pos["count"]
+            for name, want in (("NORMAL", "VEC3"), ("TEXCOORD_0", "VEC2")):
+                if name in attrs:
+                    acc = accessors[attrs[name]]
+                    if acc["type"] != want:
+                        raise doc.err(f"{what}: {name} must be {want}, got {acc['type']}")
+                    if acc["count"] != nv:
+                        raise doc.err(f"{what}: {name} has {acc['count']} entries but POSITION has {nv}")
+            if "indices" in prim:
+                idx = accessor_ref(prim["indices"], f"{what} indices")
+                if idx["type"] != "SCALAR" or idx["componentType"] not in (5121, 5123, 5125):
+                    raise doc.err(f"{what}: indices must be unsigned integer SCALARs")
+                n = idx["count"]
+            else:
+                n = nv
+            if mode == MODE_TRIANGLES and n % 3:
+                raise doc.err(f"{what}: {n} indices is not a multiple of 3 for TRIANGLES")
+
+    # nodes, scenes, cameras
+    nodes = doc.list("nodes")
+    for n, node in enumerate(nodes):
+        if not isinstance(node, dict):
+            raise doc.err(f"nodes[{n}] must be an object")
+        if "mesh" in node:
+            doc.get("meshes", node["mesh"], f"node {n}")
+        if "camera" in node:
+            doc.get("cameras", node["camera"], f"node {n}")
+        for c in node.get("children", []):
+            if not isinstance(c, int) or not 0 <= c < len(nodes):
+                raise doc.err(f"node {n} has child {c!r}, which does not exist (there are {len(nodes)} nodes)")
+        for key, size in (("matrix", 16), ("translation", 3), ("rotation", 4), ("scale", 3)):
+            if key in node:
+                value = np.asarray(node[key], dtype=np.float64)
+                if value.shape != (size,) or not np.isfinite(value).all():
+                    raise doc.err(f"node {n}: {key} must be {size} finite numbers")
+    scenes = doc.list("scenes")
+    if "scene" in doc.json:
+        doc.get("scenes", doc.json["scene"], "the default scene")
+    for s, scene in enumerate(scenes):
+        for r in scene.get("nodes", []):
+            if not isinstance(r, int) or not 0 <= r < len(nodes):
+                raise doc.err(f"scene {s} has root node {r!r}, which does not exist")
+
+    # materials -> textures -> images / samplers
+    for t, tex in enumerate(doc.list("textures")):
+        if "sampler" in tex:
+            sampler = doc.get("samplers", tex["sampler"], f"texture {t}")
+            for key in ("wrapS", "wrapT"):
+                if key in sampler and sampler[key] not in WRAP_MODES:
+                    raise doc.err(f"sampler {tex['sampler']}: unknown {key} {sampler[key]!r}")
+        src = texture_source(tex)
+        if src is not None:
+            doc.get("images", src, f"texture {t}")
+    for i, img in enumerate(doc.list("images")):
+        if "bufferView" in img:
+            doc.get("bufferViews", img["bufferView"], f"image {i}")
+    for m, mat in enumerate(doc.list("materials")):
+        info = mat.get("pbrMetallicRoughness", {}).get("baseColorTexture")
+        if info is not None:
+            doc.get("textures", info.get("index"), f"material {m} ({mat.get('name', '')!r}) baseColorTexture")
+        mode = mat.get("alphaMode", "OPAQUE")
+        if mode not in ("OPAQUE", "MASK", "BLEND"):
+            raise doc.err(f"material {m}: unknown alphaMode {mode!r}")
+
+
+def _check_range(doc, what, view_index, view, offset, stride, elem, count) -> None:
+    length = view["byteLength"]
+    if count and offset + (count - 1) * stride + elem > length:
+        raise doc.err(f"{what}: {count} elements of {elem} bytes (stride {stride}) from byte {offset} "
+                      f"run past the end of bufferView {view_index} ({length} bytes)")
+
+
+def data_uri(doc: Document, uri: str, what: str) -> bytes:
+    """The bytes of a `data:` URI (base64 or percent-encoded)."""
+    head, _, payload = uri.partition(",")
+    try:
+        if head.endswith(";base64"):
+            return base64.b64decode(payload, validate=False)
+        return unquote(payload).encode("latin-1")
+    except (binascii.Error, ValueError) as exc:
+        raise doc.err(f"{what}: bad data URI ({exc})") from None
+
+
+def texture_source(tex: dict):
+    """A texture's image index: `source`, else an extension's (e.g. EXT_texture_webp), else None."""
+    if "source" in tex:
+        return tex["source"]
+    for ext in (tex.get("extensions") or {}).values():  # e.g. EXT_texture_webp
+        if isinstance(ext, dict) and "source" in ext:
+            return ext["source"]
+    return None
