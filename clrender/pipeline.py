@@ -8,7 +8,8 @@ import pyopencl as cl
 import pyopencl.array as cla
 
 from . import gbuffer as layout
-from .passes import BinningPass, GBufferPass, RasterPass, Resources, SetupPass
+from .passes import (BinningPass, GBufferPass, LightCullPass, RasterPass, Resources, SetupPass, ShadePass,
+                     TonemapPass)
 
 MAX_RETRIES = 8
 
@@ -20,15 +21,22 @@ class Pipeline:
         self.queue = device.queue
         self.passes = [SetupPass(device, config), BinningPass(device, config),
                        RasterPass(device, config), GBufferPass(device, config)]
+        if config.light_culling == "tiled":        # brute force launches no culling kernel
+            self.light_cull = LightCullPass(device, config)
+            self.passes.append(self.light_cull)
+        else:
+            self.light_cull = None
+        self.passes += [ShadePass(device, config), TonemapPass(device, config)]
         self._check_wiring()
         self.size = None
-        self.view_proj = cla.zeros(self.queue, 16, np.float32)
-        self.prev_view_proj = cla.zeros(self.queue, 16, np.float32)
+        self.matrices = {name: cla.zeros(self.queue, 16, np.float32)
+                         for name in ("view_proj", "prev_view_proj", "view_matrix", "camera_params")}
 
     def _check_wiring(self):
         produced = {"positions", "normals", "uvs", "triangles", "tri_material", "materials", "texels",
                     "srgb_lut", "tex_infos", "tex_levels", "n_tris", "view_proj", "prev_view_proj",
-                    "near", "far", "width", "height", "has_prev", "tiles_x", "tiles_y"}
+                    "near", "far", "width", "height", "has_prev", "tiles_x", "tiles_y",
+                    "lights", "n_lights", "ambient", "view_matrix", "camera_params", "tan_x", "tan_y"}
         for p in self.passes:
             missing = set(p.inputs) - produced
             if missing:
@@ -41,17 +49,27 @@ class Pipeline:
                 p.allocate(width, height)
             self.size = (width, height)
 
+    def _set_camera(self, camera, width, height, prev_camera):
+        """Upload the camera matrices; returns the scalar camera values passes read."""
+        vp = camera.view_projection(width, height)
+        prev = prev_camera.view_projection(width, height) if prev_camera else vp
+        tan_y = float(np.tan(np.radians(camera.fov_y_deg) / 2))
+        tan_x = tan_y * width / height
+        right, up, back = camera.basis()
+        params = np.zeros((4, 4))
+        params[0, :3], params[1, :3], params[2, :3], params[3, :3] = camera.eye, -back, right * tan_x, up * tan_y
+        for name, m in (("view_proj", vp), ("prev_view_proj", prev), ("view_matrix", camera.view_matrix()),
+                        ("camera_params", params)):
+            self.matrices[name].set(np.ascontiguousarray(m, np.float32).reshape(-1), queue=self.queue)
+        return dict(width=width, height=height, near=camera.near, far=camera.far,
+                    has_prev=int(prev_camera is not None), tan_x=tan_x, tan_y=tan_y)
+
     def render(self, scene_res: Resources, camera, width, height, prev_camera=None):
-        """Run every pass; returns (G-buffer planes (P,H,W) uint32, stats dict)."""
+        """Run every pass; returns (outputs: dict of host arrays, stats dict)."""
         self.resize(width, height)
-        vp = camera.view_projection(width, height).astype(np.float32)
-        self.view_proj.set(np.ascontiguousarray(vp).reshape(-1), queue=self.queue)
-        prev = prev_camera.view_projection(width, height).astype(np.float32) if prev_camera else vp
-        self.prev_view_proj.set(np.ascontiguousarray(prev).reshape(-1), queue=self.queue)
         res = Resources(buffers=dict(scene_res.buffers), values=dict(scene_res.values))
-        res.buffers.update(view_proj=self.view_proj, prev_view_proj=self.prev_view_proj)
-        res.values.update(width=width, height=height, near=camera.near, far=camera.far,
-                          has_prev=int(prev_camera is not None))
+        res.buffers.update(self.matrices)
+        res.values.update(self._set_camera(camera, width, height, prev_camera))
         for p in self.passes:
             p.prepare_scene(scene_res)
 
@@ -70,7 +88,12 @@ class Pipeline:
             if retries > MAX_RETRIES:
                 raise RuntimeError(f"buffers kept overflowing after {MAX_RETRIES} retries: {grown}")
 
-        planes = res["gbuffer"].get(queue=self.queue).reshape(len(layout.PLANES), height, width)
+        outputs = {
+            "gbuffer": res["gbuffer"].get(queue=self.queue).reshape(len(layout.PLANES), height, width),
+            "color": np.moveaxis(res["color"].get(queue=self.queue).reshape(3, height, width), 0, -1),
+            "light_count": res["light_count"].get(queue=self.queue).reshape(height, width),
+            "image": res["image"].get(queue=self.queue).reshape(height, width, 1).view(np.uint8)[..., :3],
+        }
         stats = {f"{name}_ms": (end.profile.end - start.profile.start) * 1e-6 for name, start, end in timings}
         stats["total_ms"] = sum(stats.values())
         stats.update(self.passes[0].triangle_stats())
@@ -78,7 +101,12 @@ class Pipeline:
         stats["tile_entries"] = int(self.passes[1].total.get(queue=self.queue)[0])
         stats["tile_size"] = self.config.tile_size
         stats["retries"] = retries
-        return planes, stats
+        stats["lights"] = res["n_lights"]
+        if self.light_cull is not None:
+            stats.update(self.light_cull.tile_stats())
+        else:
+            stats.update(lights_per_tile_avg=float(res["n_lights"]), lights_per_tile_max=res["n_lights"])
+        return outputs, stats
 
     def _grow_overflowing(self) -> list:
         grown = []

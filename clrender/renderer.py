@@ -14,16 +14,30 @@ from .device import Device, DeviceInfo
 from .scene import Scene
 
 TILE_SIZES = (8, 16, 32)
+LIGHT_CULLING = ("tiled", "brute_force")
+TONEMAPS = ("reinhard", "aces", "clamp")
 
 
 @dataclass(frozen=True)
 class RenderConfig:
     """Render options. Unknown names are errors (see `RenderConfig.from_options`)."""
-    tile_size: int = 8         # bench.gbuffer on a 2-core AVX-512 CPU: 8 < 16 < 32 ms per frame
+    tile_size: int = 8         # raster tiles; bench.gbuffer on a 2-core AVX-512 CPU: 8 < 16 < 32 ms
+    light_tile_size: int = 16  # light-culling tiles
+    light_culling: str = "tiled"
+    tonemap: str = "reinhard"
+    exposure: float = 1.0
 
     def __post_init__(self):
         if self.tile_size not in TILE_SIZES:
             raise ValueError(f"tile_size must be one of {TILE_SIZES}, got {self.tile_size!r}")
+        if self.light_tile_size not in TILE_SIZES:
+            raise ValueError(f"light_tile_size must be one of {TILE_SIZES}, got {self.light_tile_size!r}")
+        if self.light_culling not in LIGHT_CULLING:
+            raise ValueError(f"light_culling must be one of {LIGHT_CULLING}, got {self.light_culling!r}")
+        if self.tonemap not in TONEMAPS:
+            raise ValueError(f"tonemap must be one of {TONEMAPS}, got {self.tonemap!r}")
+        if not (isinstance(self.exposure, (int, float)) and np.isfinite(self.exposure) and self.exposure > 0):
+            raise ValueError(f"exposure must be a positive number, got {self.exposure!r}")
 
     @classmethod
     def from_options(cls, **options) -> "RenderConfig":
@@ -36,14 +50,16 @@ class RenderConfig:
 
 @dataclass(frozen=True)
 class Frame:
-    """One rendered frame: the packed G-buffer plus decoded views of it.
-
-    Decoded fields are computed on first access from `gbuffer` (planes × H × W uint32)."""
+    """One rendered frame: the lit HDR color, the display image, and the packed G-buffer with
+    decoded views of it (computed on first access from `gbuffer`, planes × H × W uint32)."""
     gbuffer: np.ndarray
     far: float
+    color: np.ndarray           # (H, W, 3) float32 linear HDR
+    light_count: np.ndarray     # (H, W) int32 lights the culling assigned to the pixel's tile
+    image: np.ndarray           # (H, W, 3) uint8 sRGB, tone-mapped color
     stats: dict = field(default_factory=dict)
 
-    AOV_NAMES = ("depth", "linear_depth", "normal", "albedo", "triangle_id", "velocity",
+    AOV_NAMES = ("color", "light_count", "depth", "linear_depth", "normal", "albedo", "triangle_id", "velocity",
                  "specular_intensity", "specular_power", "image")
 
     @property
@@ -96,11 +112,6 @@ class Frame:
     def velocity(self) -> np.ndarray:
         return layout.decode(self.gbuffer, "velocity")
 
-    @cached_property
-    def image(self) -> np.ndarray:
-        """(H, W, 3) uint8 sRGB: the albedo until shading lands."""
-        return layout.linear_to_srgb8(self.albedo)
-
     def aov(self, name: str) -> np.ndarray:
         if name not in self.AOV_NAMES:
             raise ValueError(f"unknown AOV {name!r}; available: {', '.join(self.AOV_NAMES)}")
@@ -129,10 +140,14 @@ class Renderer:
     def render(self, scene: Scene, camera: Optional[Camera] = None,
                previous_camera: Optional[Camera] = None) -> Frame:
         from . import scene_gpu
+        from .passes import Resources
         if not isinstance(scene, Scene):
             raise TypeError(f"render() needs a clrender.Scene, got {type(scene).__name__}")
         camera = camera or scene.default_camera()
         scene_res = scene_gpu.upload(scene, self.device)
-        planes, stats = self.pipeline.render(scene_res, camera, self.width, self.height, previous_camera)
+        scene_res = Resources(buffers=dict(scene_res.buffers), values={
+            **scene_res.values, **scene_gpu.upload_lights(scene, self.device), "ambient": float(scene.ambient)})
+        out, stats = self.pipeline.render(scene_res, camera, self.width, self.height, previous_camera)
         stats["device"] = self.device.name
-        return Frame(gbuffer=planes, far=camera.far, stats=stats)
+        return Frame(gbuffer=out["gbuffer"], far=camera.far, color=out["color"], light_count=out["light_count"],
+                     image=np.ascontiguousarray(out["image"]), stats=stats)

@@ -12,6 +12,7 @@ from typing import Optional
 
 import numpy as np
 
+from . import structs
 from .camera import Camera
 
 ALPHA_MODES = ("OPAQUE", "MASK", "BLEND")
@@ -83,6 +84,8 @@ class Scene:
     camera: Optional[Camera] = None
     source: str = "<arrays>"
     settings: dict = field(default_factory=dict)  # render settings from a scene file
+    lights: np.ndarray = field(default_factory=lambda: np.zeros(0, structs.light_dtype))
+    ambient: float = 0.03                       # ambient term: ambient · albedo
 
     def __post_init__(self):
         self.positions = np.ascontiguousarray(self.positions, dtype=np.float32).reshape(-1, 3)
@@ -90,6 +93,7 @@ class Scene:
         self.uvs = np.ascontiguousarray(self.uvs, dtype=np.float32).reshape(-1, 2)
         self.triangles = np.ascontiguousarray(self.triangles, dtype=np.int32).reshape(-1, 3)
         self.triangle_material = np.ascontiguousarray(self.triangle_material, dtype=np.int32).reshape(-1)
+        self.lights = np.ascontiguousarray(self.lights, dtype=structs.light_dtype).reshape(-1)
         n_tri = len(self.triangles)
         if self.triangle_mesh is None:
             self.triangle_mesh = np.zeros(n_tri, np.int32)
@@ -128,6 +132,59 @@ class Scene:
             raise SceneError(f"<arrays>: uvs must have shape {(len(positions), 2)}, got {uvs.shape}")
         return cls(positions, normals, uvs, triangles.astype(np.int32),
                    np.zeros(len(triangles), np.int32), [material or Material()], camera=camera)
+
+    # -- lights -------------------------------------------------------------------------------
+    def add_point_light(self, position, color, radius) -> int:
+        """A point light; returns its index in `lights`."""
+        return self._add_light(structs.LIGHT_POINT, position, color, radius, (0.0, 0.0, -1.0), 0.0, 0.0)
+
+    def add_spot_light(self, position, direction, color, radius, inner_deg, outer_deg) -> int:
+        """A spot light lighting fully inside `inner_deg` of `direction`, fading to 0 at `outer_deg`."""
+        inner_deg, outer_deg = float(inner_deg), float(outer_deg)
+        if not 0.0 <= inner_deg <= outer_deg < 90.0:
+            raise SceneError(f"spot light cone angles need 0 <= inner <= outer < 90 degrees, "
+                             f"got inner={inner_deg} outer={outer_deg}")
+        return self._add_light(structs.LIGHT_SPOT, position, color, radius, direction,
+                               np.cos(np.radians(inner_deg)), np.cos(np.radians(outer_deg)))
+
+    def add_random_lights(self, count: int, seed: int, radius=(0.5, 2.0), intensity: float = 1.0) -> np.ndarray:
+        """`count` point lights uniform in the scene's bounds, reproducible for a seed; returns their indices."""
+        count = int(count)
+        if count < 0:
+            raise SceneError(f"light count must be >= 0, got {count}")
+        rmin, rmax = (float(radius), float(radius)) if np.isscalar(radius) else map(float, radius)
+        if not 0.0 < rmin <= rmax or not np.isfinite(rmax):
+            raise SceneError(f"light radius range must satisfy 0 < min <= max, got {radius!r}")
+        rng = np.random.default_rng(seed)
+        lo, hi = self.bounds().astype(np.float64)
+        new = np.zeros(count, structs.light_dtype)
+        new["position"] = rng.uniform(lo, hi, (count, 3))
+        new["radius"] = rng.uniform(rmin, rmax, count)
+        new["color"] = rng.uniform(0.2, 1.0, (count, 3)) * float(intensity)
+        new["type"] = structs.LIGHT_POINT
+        new["direction"] = (0.0, 0.0, -1.0)
+        first = len(self.lights)
+        self.lights = np.concatenate([self.lights, new])
+        return np.arange(first, first + count)
+
+    def _add_light(self, kind, position, color, radius, direction, cos_inner, cos_outer) -> int:
+        position = np.asarray(position, np.float64).reshape(-1)
+        color = np.asarray(color, np.float64).reshape(-1)
+        direction = np.asarray(direction, np.float64).reshape(-1)
+        radius = float(radius)
+        if position.shape != (3,) or not np.isfinite(position).all():
+            raise SceneError(f"light position must be 3 finite numbers, got {position.tolist()}")
+        if color.shape != (3,) or not np.isfinite(color).all() or (color < 0).any():
+            raise SceneError(f"light color must be 3 finite non-negative numbers, got {color.tolist()}")
+        if not (np.isfinite(radius) and radius > 0):
+            raise SceneError(f"light radius must be positive and finite, got {radius}")
+        norm = np.linalg.norm(direction) if direction.shape == (3,) else 0.0
+        if not (np.isfinite(norm) and norm > 0):
+            raise SceneError(f"light direction must be a non-zero 3-vector, got {direction.tolist()}")
+        rec = np.zeros(1, structs.light_dtype)
+        rec[0] = (position, radius, color, kind, direction / norm, cos_outer, cos_inner, (0, 0, 0))
+        self.lights = np.concatenate([self.lights, rec])
+        return len(self.lights) - 1
 
     # -- queries ------------------------------------------------------------------------------
     @property

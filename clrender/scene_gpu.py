@@ -78,6 +78,23 @@ def _fingerprint(scene: Scene) -> tuple:
 
 
 _UPLOADS: dict = {}
+_LIGHTS: dict = {}
+
+
+def upload_lights(scene: Scene, device) -> dict:
+    """The scene's lights as a device Light[] (re-uploaded when `scene.lights` changes)."""
+    key = (id(scene), device.info.id)
+    lights = scene.lights
+    entry = _LIGHTS.get(key)
+    if entry is not None and entry[0]() is scene and entry[1] is lights and entry[2] == lights.tobytes():
+        return entry[3]
+    data = np.ascontiguousarray(lights, structs.light_dtype)
+    buf = cla.to_device(device.queue, data if len(data) else np.zeros(1, structs.light_dtype))
+    values = {"lights": buf, "n_lights": int(len(data))}
+    for k in [k for k, v in _LIGHTS.items() if v[0]() is None]:
+        del _LIGHTS[k]
+    _LIGHTS[key] = (weakref.ref(scene), lights, lights.tobytes(), values)
+    return values
 
 
 def upload(scene: Scene, device) -> Resources:

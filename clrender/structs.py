@@ -25,5 +25,12 @@ material_dtype = np.dtype([
 texinfo_dtype = np.dtype([("first_level", "<i4"), ("levels", "<i4"), ("wrap_s", "<i4"), ("wrap_t", "<i4")])
 texlevel_dtype = np.dtype([("offset", "<i4"), ("width", "<i4"), ("height", "<i4"), ("pad", "<i4")])
 
+LIGHT_POINT, LIGHT_SPOT = 0, 1
+light_dtype = np.dtype([
+    ("position", "<f4", 3), ("radius", "<f4"), ("color", "<f4", 3), ("type", "<i4"),
+    ("direction", "<f4", 3), ("cos_outer", "<f4"), ("cos_inner", "<f4"), ("pad", "<f4", 3),
+], align=True)
+
 # name in structs.h -> dtype, for the layout test
-STRUCTS = {"Prim": prim_dtype, "Material": material_dtype, "TexInfo": texinfo_dtype, "TexLevel": texlevel_dtype}
+STRUCTS = {"Prim": prim_dtype, "Material": material_dtype, "TexInfo": texinfo_dtype, "TexLevel": texlevel_dtype,
+           "Light": light_dtype}

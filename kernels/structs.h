@@ -64,4 +64,21 @@ typedef struct {
     int pad;
 } TexLevel;
 
+/* Light.type */
+#define LIGHT_POINT 0
+#define LIGHT_SPOT  1
+
+/* A punctual light with a finite radius of influence (the report's attenuation reaches 0 at
+ * `radius`). Spot lights fade from cos_inner to cos_outer around `direction` (unit). */
+typedef struct {
+    float position[3];
+    float radius;
+    float color[3];      /* linear RGB, intensity included */
+    int   type;          /* LIGHT_* */
+    float direction[3];
+    float cos_outer;
+    float cos_inner;
+    float pad[3];
+} Light;
+
 #endif

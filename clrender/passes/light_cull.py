@@ -1,0 +1,84 @@
+"""Light culling pass (kernels/light_cull.cl): per-tile light index lists from the G-buffer depth."""
+from __future__ import annotations
+
+import numpy as np
+
+from .. import capabilities
+from .. import gbuffer as layout
+from .base import Overflow, RenderPass, empty, round_up, scan_for, zeros
+
+
+class LightCullPass(RenderPass):
+    name = "light_cull"
+    inputs = ("lights", "n_lights", "gbuffer", "view_matrix", "tan_x", "tan_y")
+    outputs = ("tile_light_counts", "tile_light_offsets", "tile_lights", "light_list_capacity", "light_tiles_x")
+
+    def __init__(self, device, config):
+        super().__init__(device, config)
+        self.tile = config.light_tile_size
+        self.vec = capabilities.pixel_vector_width(device.cl_device)
+        defines = {**layout.kernel_defines(), "LTILE": self.tile, "VEC": self.vec}
+        kernel = lambda name: device.kernel("light_cull.cl", name, defines)   # noqa: E731
+        self.bounds_kernel = kernel("light_view_bounds")
+        self.depth_kernel = kernel("tile_depth_bounds")
+        self.count_kernel = kernel("light_cull_count")
+        self.fill_kernel = kernel("light_cull_fill")
+        self.scan = scan_for(device)
+        self.total = zeros(self.queue, 1, np.int32)
+        self.n_padded = 0
+        self.list_capacity = 0
+
+    def allocate(self, width, height):
+        self.tiles_x, self.tiles_y = -(-width // self.tile), -(-height // self.tile)
+        n = self.tiles_x * self.tiles_y
+        self.tile_depth = empty(self.queue, 2 * n, np.float32)
+        self.counts = zeros(self.queue, n, np.int32)
+        self.offsets = zeros(self.queue, n, np.int32)
+        if self.list_capacity < 16 * n:
+            self._allocate_list(16 * n)
+
+    def _allocate_list(self, capacity):
+        self.list_capacity = int(capacity)
+        self.lights_list = zeros(self.queue, self.list_capacity, np.int32)
+
+    def prepare_scene(self, scene_res):
+        needed = round_up(max(scene_res["n_lights"], 1), self.vec)
+        if needed > self.n_padded:
+            self.n_padded = needed
+            self.spheres = [empty(self.queue, needed, np.float32) for _ in range(4)]
+
+    def publish(self, res):
+        res.buffers.update(tile_light_counts=self.counts, tile_light_offsets=self.offsets,
+                           tile_lights=self.lights_list)
+        res.values.update(light_list_capacity=self.list_capacity, light_tiles_x=self.tiles_x)
+
+    def run(self, res):
+        w, h = res["width"], res["height"]
+        n_lights = res["n_lights"]
+        n_padded = round_up(max(n_lights, 1), self.vec)
+        sx, sy, sz, sr = (s.data for s in self.spheres)
+        self.bounds_kernel(self.queue, (round_up(n_padded, 64),), None, res["lights"].data, np.int32(n_lights),
+                           np.int32(n_padded), res["view_matrix"].data, sx, sy, sz, sr)
+        n_tiles = self.tiles_x * self.tiles_y
+        gsize = (round_up(n_tiles, 64),)
+        self.depth_kernel(self.queue, gsize, None, res["gbuffer"].data, np.int32(w), np.int32(h),
+                          np.float32(res["far"]), np.int32(self.tiles_x), np.int32(self.tiles_y),
+                          self.tile_depth.data)
+        cull = (sx, sy, sz, sr, np.int32(n_padded), self.tile_depth.data, np.int32(self.tiles_x),
+                np.int32(self.tiles_y), np.int32(w), np.int32(h), np.float32(res["tan_x"]), np.float32(res["tan_y"]))
+        self.count_kernel(self.queue, gsize, None, *cull, self.counts.data)
+        self.scan(self.counts, self.offsets, self.total, queue=self.queue)
+        self.fill_kernel(self.queue, gsize, None, *cull, self.offsets.data, np.int32(self.list_capacity),
+                         self.lights_list.data)
+
+    def overflows(self):
+        return [Overflow("tile_lights", self.total, self.list_capacity)]
+
+    def grow(self, name, needed):
+        self._allocate_list(round_up(needed + needed // 4, 4096))
+
+    def tile_stats(self) -> dict:
+        counts = self.counts.get(queue=self.queue)[: self.tiles_x * self.tiles_y]
+        return {"lights_per_tile_avg": float(counts.mean()) if counts.size else 0.0,
+                "lights_per_tile_max": int(counts.max()) if counts.size else 0,
+                "light_list_entries": int(counts.sum())}

@@ -1,0 +1,147 @@
+/* shade.cl: deferred Blinn-Phong shading from the G-buffer (report II.4, the light buffer).
+ *
+ * Algorithm: one work-group per LTILE×LTILE light tile; each work-item shades a run of VEC
+ * adjacent pixels (vec.h). It decodes the G-buffer (normal, albedo, specular terms, linear
+ * depth), rebuilds the world position from the linear depth and the pixel's view ray
+ * ("Question du Z"), then walks its tile's light list (or, with BRUTE_FORCE, every light) in
+ * index order, accumulating the light buffer's diffuse and specular sums:
+ *     A = (1 - (d/r)^2)^3 for d < r, else 0;  S = 1, or t^2 for spots with
+ *     t = clamp((dot(-L, dir) - cos_outer) / max(cos_inner - cos_outer, 1e-4), 0, 1);
+ *     diffuse += A·S·color·max(N·L, 0);  specular += A·S·color·s·max(N·H, 0)^p where N·L > 0;
+ * and applies the "global multiply": color = albedo·(ambient + diffuse) + specular.
+ * Background pixels get 0. The loop over lights is uniform across the run's lanes, so light
+ * records are scalar loads and the math is VEC-wide.
+ *
+ * Buffers: gbuffer uint[GB_PLANES][H·W]; lights Light[n]; camera float[16] = eye, F, R·tan_x,
+ *          U·tan_y (float4 each, world space); tile_light_offsets/counts int[tiles],
+ *          tile_lights int[list_capacity]; srgb_lut float[256].
+ *          out: color float[3][H·W] (linear HDR planes), light_count int[H·W].
+ * Work-groups: (LTILE/VEC, LTILE); global size = (tiles_x·LTILE/VEC, tiles_y·LTILE).
+ */
+#pragma OPENCL FP_CONTRACT OFF
+#include "structs.h"
+#include "gbuffer.h"
+
+#ifndef LTILE
+#define LTILE 16
+#endif
+#ifndef BRUTE_FORCE
+#define BRUTE_FORCE 0
+#endif
+
+/* Loads VEC consecutive words of a plane starting at pixel p0 (lanes past `valid` get `fill`). */
+static inline uintV load_plane(global const uint* plane, int p0, int valid, uint fill)
+{
+    if (valid == VEC) return vloadV(0, plane + p0);
+    uintV r = fill;
+    for (int l = 0; l < valid; ++l) LANE_I(r, l) = (int)plane[p0 + l];
+    return r;
+}
+
+kernel __attribute__((reqd_work_group_size(LTILE / VEC, LTILE, 1)))
+void shade(global const uint* gbuffer, int width, int height, float far, global const float* camera,
+           global const Light* lights, int n_lights, float ambient,
+           global const int* tile_light_offsets, global const int* tile_light_counts,
+           global const int* tile_lights, int list_capacity, int tiles_x,
+           constant float* srgb_lut, global float* color, global int* light_count)
+{
+    const int px0 = get_global_id(0) * VEC, py = get_global_id(1);
+    if (py >= height || px0 >= width) return;
+    const int npix = width * height;
+    const int p0 = py * width + px0;
+    const int valid = min(VEC, width - px0);
+    const int tile = get_group_id(1) * tiles_x + get_group_id(0);
+
+    /* Decode the G-buffer. */
+    intV tri = as_intV(load_plane(gbuffer + GB_TRIANGLE_ID_PLANE * npix, p0, valid, 0xffffffffu));
+    intV fg = tri >= 0;
+    uintV w_alb = load_plane(gbuffer + GB_ALBEDO_PLANE * npix, p0, valid, 0u);
+    uintV w_nrm = load_plane(gbuffer + GB_NORMAL_PLANE * npix, p0, valid, 0u);
+    floatV lin = as_floatV(load_plane(gbuffer + GB_LINEAR_DEPTH_PLANE * npix, p0, valid, 0u));
+    floatV depth = select((floatV)0.0f, lin * far, fg);
+
+    floatV ar, ag, ab;
+    for (int l = 0; l < VEC; ++l) {
+        uint w = (uint)LANE_I(w_alb, l) >> GB_ALBEDO_SHIFT;
+        LANE_F(ar, l) = srgb_lut[w & 255u];
+        LANE_F(ag, l) = srgb_lut[(w >> 8) & 255u];
+        LANE_F(ab, l) = srgb_lut[(w >> 16) & 255u];
+    }
+    floatV spec_i = convert_floatV((w_alb >> GB_SPECULAR_INTENSITY_SHIFT) & 255u) * (1.0f / 255.0f);
+    floatV spec_p = exp2(convert_floatV((w_nrm >> GB_SPECULAR_POWER_SHIFT) & 255u) * (SPEC_POWER_LOG2_MAX / 255.0f));
+    uintV oct = w_nrm >> GB_NORMAL_SHIFT;
+    floatV fx = convert_floatV(oct & 4095u) * (2.0f / 4095.0f) - 1.0f;
+    floatV fy = convert_floatV((oct >> 12) & 4095u) * (2.0f / 4095.0f) - 1.0f;
+    floatV fz = 1.0f - fabs(fx) - fabs(fy);
+    floatV t = fmax(-fz, 0.0f);
+    fx += select(t, -t, fx >= 0.0f);
+    fy += select(t, -t, fy >= 0.0f);
+    floatV inv_n = rsqrt(fx * fx + fy * fy + fz * fz);
+    floatV nx = fx * inv_n, ny = fy * inv_n, nz = fz * inv_n;
+
+    /* World position on the pixel's view ray at the stored depth; V points to the eye. */
+    const float3 eye = vload4(0, camera).xyz, F = vload4(1, camera).xyz;
+    const float3 Rs = vload4(2, camera).xyz, Us = vload4(3, camera).xyz;
+    floatV xn = (convert_floatV(px0 + LANES) + 0.5f) * (2.0f / (float)width) - 1.0f;
+    floatV yn = 1.0f - ((float)py + 0.5f) * (2.0f / (float)height);
+    floatV dx = F.x + xn * Rs.x + yn * Us.x, dy = F.y + xn * Rs.y + yn * Us.y, dz = F.z + xn * Rs.z + yn * Us.z;
+    floatV px = eye.x + depth * dx, py_ = eye.y + depth * dy, pz = eye.z + depth * dz;
+    floatV inv_d = rsqrt(dx * dx + dy * dy + dz * dz);
+    floatV vx = -dx * inv_d, vy = -dy * inv_d, vz = -dz * inv_d;
+
+    floatV dr = 0.0f, dg = 0.0f, db = 0.0f, sr = 0.0f, sg = 0.0f, sb = 0.0f;
+#if BRUTE_FORCE
+    const int first = 0, count = n_lights;
+#else
+    const int first = tile_light_offsets[tile];
+    const int count = max(min(tile_light_counts[tile], list_capacity - first), 0);
+#endif
+    if (ANY(fg)) {
+        for (int k = 0; k < count; ++k) {
+#if BRUTE_FORCE
+            const Light lt = lights[k];
+#else
+            const Light lt = lights[tile_lights[first + k]];
+#endif
+            floatV lx = lt.position[0] - px, ly = lt.position[1] - py_, lz = lt.position[2] - pz;
+            floatV d2 = lx * lx + ly * ly + lz * lz;
+            float r2 = lt.radius * lt.radius;
+            intV near_enough = fg & (d2 < r2);
+            if (!ANY(near_enough)) continue;
+            floatV q = 1.0f - d2 / r2;
+            floatV atten = select((floatV)0.0f, q * q * q, near_enough);
+            floatV inv_l = rsqrt(fmax(d2, 1e-30f));
+            lx *= inv_l; ly *= inv_l; lz *= inv_l;
+            if (lt.type == LIGHT_SPOT) {
+                floatV cos_a = -(lx * lt.direction[0] + ly * lt.direction[1] + lz * lt.direction[2]);
+                floatV s = clamp((cos_a - lt.cos_outer) / fmax(lt.cos_inner - lt.cos_outer, 1e-4f), 0.0f, 1.0f);
+                atten *= s * s;
+            }
+            floatV ndotl = nx * lx + ny * ly + nz * lz;
+            floatV hx = lx + vx, hy = ly + vy, hz = lz + vz;
+            floatV inv_h = rsqrt(fmax(hx * hx + hy * hy + hz * hz, 1e-30f));
+            floatV ndoth = fmax((nx * hx + ny * hy + nz * hz) * inv_h, 0.0f);
+            floatV spec = select((floatV)0.0f, spec_i * powr(ndoth, spec_p), ndotl > 0.0f);
+            floatV diff = atten * fmax(ndotl, 0.0f);
+            spec *= atten;
+            dr += diff * lt.color[0]; dg += diff * lt.color[1]; db += diff * lt.color[2];
+            sr += spec * lt.color[0]; sg += spec * lt.color[1]; sb += spec * lt.color[2];
+        }
+    }
+    floatV cr = select((floatV)0.0f, ar * (ambient + dr) + sr, fg);
+    floatV cg = select((floatV)0.0f, ag * (ambient + dg) + sg, fg);
+    floatV cb = select((floatV)0.0f, ab * (ambient + db) + sb, fg);
+    if (valid == VEC) {
+        vstoreV(cr, 0, color + p0);
+        vstoreV(cg, 0, color + npix + p0);
+        vstoreV(cb, 0, color + 2 * npix + p0);
+        vstoreV((intV)count, 0, light_count + p0);
+    } else {
+        for (int l = 0; l < valid; ++l) {
+            color[p0 + l] = LANE_F(cr, l);
+            color[npix + p0 + l] = LANE_F(cg, l);
+            color[2 * npix + p0 + l] = LANE_F(cb, l);
+            light_count[p0 + l] = count;
+        }
+    }
+}

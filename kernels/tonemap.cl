@@ -1,0 +1,45 @@
+/* tonemap.cl: HDR color -> display image (post-processing).
+ *
+ * Algorithm: one work-item per run of VEC pixels (vec.h): c = color · exposure, then the
+ * operator chosen at build time (TONEMAP 0: clamp, 1: Reinhard c/(1+c), 2: ACES fitted,
+ * Narkowicz 2015), then sRGB encoding to 8 bits (gbuffer.h's encoder).
+ *
+ * Buffers: color float[3][H·W] linear HDR planes; out: image uint[H·W] RGBA8 (R low byte,
+ * alpha 255).
+ * Work-groups: 1-D, any size; no barriers.
+ */
+#include "gbuffer.h"
+
+#ifndef TONEMAP
+#define TONEMAP 1
+#endif
+
+static inline floatV tonemap(floatV c)
+{
+    c = fmax(c, 0.0f);
+#if TONEMAP == 1
+    return c / (1.0f + c);
+#elif TONEMAP == 2
+    return clamp((c * (2.51f * c + 0.03f)) / (c * (2.43f * c + 0.59f) + 0.14f), 0.0f, 1.0f);
+#else
+    return clamp(c, 0.0f, 1.0f);
+#endif
+}
+
+kernel void tonemap_image(global const float* color, int npix, float exposure, global uint* image)
+{
+    const int p0 = get_global_id(0) * VEC;
+    if (p0 >= npix) return;
+    if (p0 + VEC <= npix) {
+        floatV r = vloadV(0, color + p0), g = vloadV(0, color + npix + p0), b = vloadV(0, color + 2 * npix + p0);
+        uintV rgb = pack_srgb8x3V(tonemap(r * exposure), tonemap(g * exposure), tonemap(b * exposure));
+        vstoreV(rgb | 0xff000000u, 0, image + p0);
+    } else {
+        for (int p = p0; p < npix; ++p) {
+            /* Tail: one pixel at a time through lane 0. */
+            floatV r = color[p], g = color[npix + p], b = color[2 * npix + p];
+            uintV rgb = pack_srgb8x3V(tonemap(r * exposure), tonemap(g * exposure), tonemap(b * exposure));
+            image[p] = (uint)LANE_I(rgb, 0) | 0xff000000u;
+        }
+    }
+}
