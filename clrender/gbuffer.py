@@ -74,6 +74,28 @@ def srgb_to_linear_lut() -> np.ndarray:
     return _SRGB_TO_LINEAR
 
 
+SRGB_ENCODE_INTERVALS = 4096
+
+
+def srgb_encode_table(n: int = SRGB_ENCODE_INTERVALS) -> np.ndarray:
+    """(n, 2) float32 for the kernels' sRGB encoder: linear [0,1] split into n equal intervals;
+    entry k = (threshold, base code): code(x) = base + (x >= threshold) for x in interval k.
+    At n = 4096 no interval holds two code boundaries (the curve's steepest slope is ~3300
+    codes per unit), so the encoder equals rounding the exact curve but for float32 ties."""
+    lo = np.arange(n, dtype=np.float64) / n
+    base = linear_to_srgb8(lo).astype(np.float64)
+    thr = srgb_to_linear_exact((base + 0.5) / 255.0)
+    thr = np.where(thr < lo + 1.0 / n, thr, 2.0)
+    if np.any(linear_to_srgb8(np.minimum(lo + 1.0 / n, 1.0)) > base + 1):
+        raise AssertionError("two sRGB code boundaries in one interval")
+    return np.stack([thr, base], 1).astype(np.float32)
+
+
+def srgb_to_linear_exact(c: np.ndarray) -> np.ndarray:
+    c = np.asarray(c, np.float64)
+    return np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4)
+
+
 def linear_to_srgb8(x: np.ndarray) -> np.ndarray:
     x = np.clip(np.asarray(x, np.float64), 0.0, 1.0)
     s = np.where(x <= 0.0031308, x * 12.92, 1.055 * x ** (1 / 2.4) - 0.055)

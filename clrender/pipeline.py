@@ -8,8 +8,8 @@ import pyopencl as cl
 import pyopencl.array as cla
 
 from . import gbuffer as layout
-from .passes import (BinningPass, GBufferPass, LightCullPass, RasterPass, Resources, SetupPass, ShadePass,
-                     TonemapPass)
+from .passes import (BinningPass, GBufferPass, LightCullPass, ParticlesPass, RasterPass, Resources, SetupPass,
+                     ShadePass, TonemapPass)
 
 MAX_RETRIES = 8
 
@@ -20,7 +20,7 @@ class Pipeline:
         self.config = config
         self.queue = device.queue
         self.passes = [SetupPass(device, config), BinningPass(device, config),
-                       RasterPass(device, config), GBufferPass(device, config)]
+                       RasterPass(device, config), GBufferPass(device, config), ParticlesPass(device, config)]
         if config.light_culling == "tiled":        # brute force launches no culling kernel
             self.light_cull = LightCullPass(device, config)
             self.passes.append(self.light_cull)
@@ -31,12 +31,14 @@ class Pipeline:
         self.size = None
         self.matrices = {name: cla.zeros(self.queue, 16, np.float32)
                          for name in ("view_proj", "prev_view_proj", "view_matrix", "camera_params")}
+        self.constants = {"srgb_encode": cla.to_device(self.queue, layout.srgb_encode_table())}
 
     def _check_wiring(self):
         produced = {"positions", "normals", "uvs", "triangles", "tri_material", "materials", "texels",
                     "srgb_lut", "tex_infos", "tex_levels", "n_tris", "view_proj", "prev_view_proj",
                     "near", "far", "width", "height", "has_prev", "tiles_x", "tiles_y",
-                    "lights", "n_lights", "ambient", "view_matrix", "camera_params", "tan_x", "tan_y"}
+                    "lights", "n_lights", "ambient", "view_matrix", "camera_params", "tan_x", "tan_y",
+                    "srgb_encode", "particle_systems", "time"}
         for p in self.passes:
             missing = set(p.inputs) - produced
             if missing:
@@ -64,12 +66,13 @@ class Pipeline:
         return dict(width=width, height=height, near=camera.near, far=camera.far,
                     has_prev=int(prev_camera is not None), tan_x=tan_x, tan_y=tan_y)
 
-    def render(self, scene_res: Resources, camera, width, height, prev_camera=None):
+    def render(self, scene_res: Resources, camera, width, height, prev_camera=None, time=0.0):
         """Run every pass; returns (outputs: dict of host arrays, stats dict)."""
         self.resize(width, height)
         res = Resources(buffers=dict(scene_res.buffers), values=dict(scene_res.values))
         res.buffers.update(self.matrices)
-        res.values.update(self._set_camera(camera, width, height, prev_camera))
+        res.buffers.update(self.constants)
+        res.values.update(self._set_camera(camera, width, height, prev_camera), time=float(time))
         for p in self.passes:
             p.prepare_scene(scene_res)
 
@@ -78,6 +81,8 @@ class Pipeline:
             timings = []
             for p in self.passes:
                 p.publish(res)
+                if p.name == "particles" and not res["particle_systems"]:
+                    continue                        # no particles: no kernel
                 start = cl.enqueue_marker(self.queue)
                 p.run(res)
                 timings.append((p.name, start, cl.enqueue_marker(self.queue)))

@@ -137,17 +137,34 @@ class Renderer:
         from .pipeline import Pipeline
         self.pipeline = Pipeline(self.device, self.config)
 
+    def lights_at(self, scene: Scene, time: float = 0.0) -> np.ndarray:
+        """The lights a frame at `time` is shaded with (particles placed by the device)."""
+        from . import scene_gpu
+        from .passes import Resources
+        values = scene_gpu.upload_lights(scene, self.device)
+        particles = next(p for p in self.pipeline.passes if p.name == "particles")
+        particles.run(Resources(values={**values, "particle_systems": tuple(scene.particle_systems),
+                                        "time": float(time)}))
+        lights = values["lights"].get(queue=self.device.queue)
+        return lights[: values["n_lights"]]
+
     def render(self, scene: Scene, camera: Optional[Camera] = None,
-               previous_camera: Optional[Camera] = None) -> Frame:
+               previous_camera: Optional[Camera] = None, time: float = 0.0) -> Frame:
+        """Render `scene` from `camera` (default: the scene's). `previous_camera` gives motion
+        vectors; `time` (seconds) places the scene's light particles."""
         from . import scene_gpu
         from .passes import Resources
         if not isinstance(scene, Scene):
             raise TypeError(f"render() needs a clrender.Scene, got {type(scene).__name__}")
         camera = camera or scene.default_camera()
         scene_res = scene_gpu.upload(scene, self.device)
+        if not np.isfinite(time):
+            raise ValueError(f"time must be finite, got {time!r}")
         scene_res = Resources(buffers=dict(scene_res.buffers), values={
-            **scene_res.values, **scene_gpu.upload_lights(scene, self.device), "ambient": float(scene.ambient)})
-        out, stats = self.pipeline.render(scene_res, camera, self.width, self.height, previous_camera)
+            **scene_res.values, **scene_gpu.upload_lights(scene, self.device), "ambient": float(scene.ambient),
+            "particle_systems": tuple(scene.particle_systems)})
+        out, stats = self.pipeline.render(scene_res, camera, self.width, self.height, previous_camera, time)
         stats["device"] = self.device.name
+        stats["time"] = float(time)
         return Frame(gbuffer=out["gbuffer"], far=camera.far, color=out["color"], light_count=out["light_count"],
                      image=np.ascontiguousarray(out["image"]), stats=stats)

@@ -19,6 +19,22 @@ ALPHA_MODES = ("OPAQUE", "MASK", "BLEND")
 WRAP_MODES = ("repeat", "clamp", "mirror")
 
 
+@dataclass(frozen=True)
+class ParticleSystem:
+    """Animated lights occupying `lights[first:first + count]` (kernels/particles.cl)."""
+    first: int
+    count: int
+    seed: int
+    lo: tuple
+    hi: tuple
+    speed: float
+    life_min: float
+    life_max: float
+    radius_min: float
+    radius_max: float
+    intensity: float
+
+
 class SceneError(ValueError):
     """Bad scene input; the message names the file (when there is one) and the problem."""
 
@@ -86,6 +102,7 @@ class Scene:
     settings: dict = field(default_factory=dict)  # render settings from a scene file
     lights: np.ndarray = field(default_factory=lambda: np.zeros(0, structs.light_dtype))
     ambient: float = 0.03                       # ambient term: ambient · albedo
+    particle_systems: list = field(default_factory=list)   # ParticleSystem: animated slices of `lights`
 
     def __post_init__(self):
         self.positions = np.ascontiguousarray(self.positions, dtype=np.float32).reshape(-1, 3)
@@ -165,6 +182,28 @@ class Scene:
         new["direction"] = (0.0, 0.0, -1.0)
         first = len(self.lights)
         self.lights = np.concatenate([self.lights, new])
+        return np.arange(first, first + count)
+
+    def add_light_particles(self, count: int, seed: int, radius=(0.5, 2.0), intensity: float = 1.0,
+                            speed: float = 1.0, lifetime=(2.0, 5.0), bounds=None) -> np.ndarray:
+        """`count` animated point lights (report V.1): they move, fade and respawn inside `bounds`
+        (default: the scene's), updated on the device for `Renderer.render(..., time=t)`; the
+        same seed and time give the same lights on every device. Returns their indices."""
+        count = int(count)
+        lo, hi = (self.bounds() if bounds is None else np.asarray(bounds, np.float64)).astype(np.float64)
+        rmin, rmax = (float(radius), float(radius)) if np.isscalar(radius) else map(float, radius)
+        lmin, lmax = map(float, lifetime)
+        if count < 0 or not 0 < rmin <= rmax or not 0 < lmin <= lmax or speed < 0 or intensity < 0 \
+                or lo.shape != (3,) or not np.all(lo <= hi):
+            raise SceneError("light particles need count >= 0, 0 < radius min <= max, 0 < lifetime min <= max, "
+                             "speed >= 0, intensity >= 0 and bounds (lo, hi) with lo <= hi")
+        first = len(self.lights)
+        placeholders = np.zeros(count, structs.light_dtype)
+        placeholders["radius"] = rmin
+        placeholders["position"] = (lo + hi) / 2
+        self.lights = np.concatenate([self.lights, placeholders])
+        self.particle_systems.append(ParticleSystem(first, count, int(seed) & 0xFFFFFFFF, tuple(lo), tuple(hi),
+                                                    float(speed), lmin, lmax, rmin, rmax, float(intensity)))
         return np.arange(first, first + count)
 
     def _add_light(self, kind, position, color, radius, direction, cos_inner, cos_outer) -> int:

@@ -11,7 +11,8 @@
  *
  * Buffers: vis_depth float[W·H], vis_prim int[W·H]; prims Prim[*]; scene positions/normals
  *          float[3V], uvs float[2V], triangles int[3T], materials Material[M]; textures;
- *          prev_view_proj float[16]. out: gbuffer uint[GB_PLANES][H·W].
+ *          prev_view_proj float[16]; srgb_lut float[256] (decode), srgb_encode float2[4096].
+ *          out: gbuffer uint[GB_PLANES][H·W].
  * Work-groups: 1-D, work-item i covers pixels [i·VEC, i·VEC + VEC); no barriers.
  */
 #pragma OPENCL FP_CONTRACT OFF
@@ -43,7 +44,7 @@ static inline vec3V interp3(vec3V a, vec3V b, vec3V c, floatV b0, floatV b1, flo
 /* Texture coordinate folded into one period: repeat [0,1), mirror/clamp [0,1]. */
 static inline floatV foldV(floatV u, intV mode)
 {
-    u = clamp(u, (floatV)-1.0e9f, (floatV)1.0e9f);
+    u = fmin(fmax(u, -1.0e9f), 1.0e9f);     /* NaN -> -1e9 (fmax ignores NaN) */
     floatV rep = u - floor(u);
     floatV t = u - 2.0f * floor(u * 0.5f);
     floatV mir = select(t, 2.0f - t, t > 1.0f);
@@ -109,7 +110,7 @@ kernel void gbuffer_resolve(global const float* vis_depth, global const int* vis
                             global const float* positions, global const float* normals,
                             global const float* uvs, global const int* triangles,
                             global const Material* materials,
-                            global const uint* texels, constant float* srgb_lut,
+                            global const uint* texels, constant float* srgb_lut, constant float2* srgb_encode,
                             global const TexInfo* tex_infos, global const TexLevel* tex_levels,
                             global const float* prev_view_proj, int has_prev,
                             global uint* gbuffer)
@@ -230,8 +231,8 @@ kernel void gbuffer_resolve(global const float* vis_depth, global const int* vis
             floatV fw = convert_floatV(w0), fh = convert_floatV(h0);
             floatV rho2 = fmax((dux * fw) * (dux * fw) + (dvx * fh) * (dvx * fh),
                                (duy * fw) * (duy * fw) + (dvy * fh) * (dvy * fh));
-            rho2 = clamp(rho2, 1e-20f, 1e30f);       /* also turns NaN into a finite LOD */
-            floatV lod = clamp(0.5f * fast_log2V(rho2), 0.0f, convert_floatV(nlev - 1));
+            rho2 = fmin(fmax(rho2, 1e-20f), 1e30f);   /* NaN -> 1e-20: a finite LOD */
+            floatV lod = fmin(fmax(0.5f * fast_log2V(rho2), 0.0f), convert_floatV(nlev - 1));
             intV l0 = convert_intV(lod), l1 = min(l0 + 1, nlev - 1);
             floatV f = lod - convert_floatV(l0);
             intV offa, wa, ha, offb, wb, hb;
@@ -264,7 +265,7 @@ kernel void gbuffer_resolve(global const float* vis_depth, global const int* vis
 #endif
         uintV planes_fg[GB_PLANES];
         for (int i = 0; i < GB_PLANES; ++i) planes_fg[i] = 0;
-        GB_PUT(planes_fg, ALBEDO, pack_srgb8x3V(cr, cg, cb));
+        GB_PUT(planes_fg, ALBEDO, pack_srgb8x3V(cr, cg, cb, srgb_encode));
         GB_PUT(planes_fg, SPECULAR_INTENSITY, unormV(spec_i, 8));
         GB_PUT(planes_fg, LINEAR_DEPTH, as_uintV(depth / far));
         GB_PUT(planes_fg, NORMAL, pack_oct12x2V(n.x, n.y, n.z));

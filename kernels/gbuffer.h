@@ -57,7 +57,7 @@
  * clrender/gbuffer.py decodes them. */
 static inline uintV unormV(floatV v, int bits)
 {
-    return convert_uintV(clamp(v, 0.0f, 1.0f) * (float)((1 << bits) - 1) + 0.5f);
+    return convert_uintV(fmin(fmax(v, 0.0f), 1.0f) * (float)((1 << bits) - 1) + 0.5f);
 }
 
 /* The report's pack_float2 (section II.3), `bits` per value, rounded rather than truncated. */
@@ -66,15 +66,28 @@ static inline uintV pack_float2V(floatV a, floatV b, int bits)
     return (unormV(a, bits) << bits) | unormV(b, bits);
 }
 
-static inline uintV pack_srgb8V(floatV x)
+#ifndef SRGB_ENCODE_INTERVALS
+#define SRGB_ENCODE_INTERVALS 4096
+#endif
+
+/* 8-bit sRGB encoding by table (clrender/gbuffer.py srgb_encode_table): linear [0,1] in
+ * SRGB_ENCODE_INTERVALS intervals, each with its base code and the one code boundary inside
+ * it; exact rounding of the sRGB curve without pow(). */
+static inline uintV pack_srgb8V(floatV x, constant float2* srgb_encode)
 {
-    x = clamp(x, 0.0f, 1.0f);
-    return unormV(select(1.055f * powr(x, 1.0f / 2.4f) - 0.055f, x * 12.92f, x <= 0.0031308f), 8);
+    uintV code;
+    for (int l = 0; l < VEC; ++l) {
+        float v = fmin(fmax(LANE_F(x, l), 0.0f), 1.0f);   /* fmax ignores NaN: NaN -> 0 */
+        int k = min((int)(v * (float)SRGB_ENCODE_INTERVALS), SRGB_ENCODE_INTERVALS - 1);
+        float2 e = srgb_encode[k];
+        LANE_I(code, l) = (int)e.y + (v >= e.x ? 1 : 0);
+    }
+    return code;
 }
 
-static inline uintV pack_srgb8x3V(floatV r, floatV g, floatV b)
+static inline uintV pack_srgb8x3V(floatV r, floatV g, floatV b, constant float2* srgb_encode)
 {
-    return pack_srgb8V(r) | (pack_srgb8V(g) << 8) | (pack_srgb8V(b) << 16);
+    return pack_srgb8V(r, srgb_encode) | (pack_srgb8V(g, srgb_encode) << 8) | (pack_srgb8V(b, srgb_encode) << 16);
 }
 
 /* Octahedral map of a unit vector onto [0,1]^2, 12 bits each, u in the low bits. */

@@ -19,7 +19,7 @@ static inline float floor_fast(float u)   /* floor() for |u| < 2^31 without a li
 
 static inline float fold_coord(float u, int mode)
 {
-    u = clamp(u, -1.0e9f, 1.0e9f);               /* NaN-free, int-convertible */
+    u = fmin(fmax(u, -1.0e9f), 1.0e9f);          /* NaN-free (fmax ignores NaN), int-convertible */
     if (mode == WRAP_REPEAT) return u - floor_fast(u);
     if (mode == WRAP_MIRROR) {
         float t = u - 2.0f * floor_fast(u * 0.5f);     /* [0, 2) */
@@ -64,7 +64,7 @@ static float texture_lod(TexLevel base, float2 duv_dx, float2 duv_dy)
     float2 sy = duv_dy * (float2)((float)base.width, (float)base.height);
     float rho2 = fmax(sx.x * sx.x + sx.y * sx.y, sy.x * sy.x + sy.y * sy.y);
     /* log2 from the float's exponent and a linear mantissa, as texture units approximate it */
-    rho2 = clamp(rho2, 1e-20f, 1e30f);
+    rho2 = fmin(fmax(rho2, 1e-20f), 1e30f);      /* NaN -> 1e-20 */
     int bits = as_int(rho2);
     float log2_rho2 = (float)((bits >> 23) - 127) + (as_float((bits & 0x007fffff) | 0x3f800000) - 1.0f);
     return 0.5f * log2_rho2;
@@ -76,7 +76,7 @@ static float4 sample_trilinear(global const uint* texels, constant float* srgb_l
 {
     TexInfo info = infos[tex];
     TexLevel base = levels[info.first_level];
-    float lod = clamp(texture_lod(base, duv_dx, duv_dy), 0.0f, (float)(info.levels - 1));
+    float lod = fmin(fmax(texture_lod(base, duv_dx, duv_dy), 0.0f), (float)(info.levels - 1));
     int l0 = (int)lod;
     int l1 = min(l0 + 1, info.levels - 1);
     float f = lod - (float)l0;

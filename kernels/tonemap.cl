@@ -4,7 +4,7 @@
  * operator chosen at build time (TONEMAP 0: clamp, 1: Reinhard c/(1+c), 2: ACES fitted,
  * Narkowicz 2015), then sRGB encoding to 8 bits (gbuffer.h's encoder).
  *
- * Buffers: color float[3][H·W] linear HDR planes; out: image uint[H·W] RGBA8 (R low byte,
+ * Buffers: color float[3][H·W] linear HDR planes; srgb_encode float2[4096]; out: image uint[H·W] RGBA8 (R low byte,
  * alpha 255).
  * Work-groups: 1-D, any size; no barriers.
  */
@@ -26,19 +26,21 @@ static inline floatV tonemap(floatV c)
 #endif
 }
 
-kernel void tonemap_image(global const float* color, int npix, float exposure, global uint* image)
+kernel void tonemap_image(global const float* color, int npix, float exposure, constant float2* srgb_encode,
+                          global uint* image)
 {
     const int p0 = get_global_id(0) * VEC;
     if (p0 >= npix) return;
     if (p0 + VEC <= npix) {
         floatV r = vloadV(0, color + p0), g = vloadV(0, color + npix + p0), b = vloadV(0, color + 2 * npix + p0);
-        uintV rgb = pack_srgb8x3V(tonemap(r * exposure), tonemap(g * exposure), tonemap(b * exposure));
+        uintV rgb = pack_srgb8x3V(tonemap(r * exposure), tonemap(g * exposure), tonemap(b * exposure), srgb_encode);
         vstoreV(rgb | 0xff000000u, 0, image + p0);
     } else {
         for (int p = p0; p < npix; ++p) {
             /* Tail: one pixel at a time through lane 0. */
             floatV r = color[p], g = color[npix + p], b = color[2 * npix + p];
-            uintV rgb = pack_srgb8x3V(tonemap(r * exposure), tonemap(g * exposure), tonemap(b * exposure));
+            uintV rgb = pack_srgb8x3V(tonemap(r * exposure), tonemap(g * exposure), tonemap(b * exposure),
+                                      srgb_encode);
             image[p] = (uint)LANE_I(rgb, 0) | 0xff000000u;
         }
     }

@@ -299,7 +299,8 @@ def test_demo_toml():
     crate = load_scene(SCENES / "crate.obj")
     assert scene.triangle_count == gltf.triangle_count + crate.triangle_count == gltf.triangle_count + 12
     assert scene.settings["render"] == {"width": 960, "height": 540}
-    assert [light["type"] for light in scene.settings["lights"]] == ["directional", "point"]
+    assert [light["type"] for light in scene.settings["lights"]] == ["point", "point", "point", "spot"]
+    assert len(scene.lights) == 4 + 64
     assert scene.camera == Camera.look_at((0, 4, 10), (0, 1, 0), (0, 1, 0), 50, 0.1, 100)
     # crate transform: T(2.6, 0, 2.4) . Ry(30) . S(0.8)
     c, s = math.cos(math.radians(30)), math.sin(math.radians(30))

@@ -72,3 +72,19 @@ def test_alpha_mask_and_resolve(device, capfd):
     np.testing.assert_allclose(frame.albedo[np.isin(ids, (2, 3))][0], (0.2, 0.4, 0.6), atol=0.01)
     np.testing.assert_allclose(frame.normal[quad], np.broadcast_to((0, 0, 1), frame.normal[quad].shape), atol=1e-3)
     assert_no_device_diagnostics(capfd)
+
+
+def test_lighting_kernels(device, capfd):
+    """Culling, shading (tiled and brute force), tone mapping and particles on a tiny frame."""
+    scene = masked_quad_scene()
+    scene.add_point_light((0.5, 0.2, -2.0), (2.0, 1.5, 1.0), 2.5)
+    scene.add_spot_light((-1.0, 1.0, -1.0), (0.3, -0.3, -1.0), (3.0, 3.0, 3.0), 6.0, 10.0, 30.0)
+    scene.add_light_particles(20, seed=2, radius=(0.5, 1.5), bounds=((-2, -2, -5), (2, 2, -2)))
+    cam = Camera.look_at((0, 0, 0), (0, 0, -1), fov_y_deg=60, near=0.1, far=50)
+    tiled = clrender.Renderer(16, 16, device=device.id, tile_size=8, light_tile_size=8).render(scene, cam, time=0.5)
+    brute = clrender.Renderer(16, 16, device=device.id, tile_size=8, light_tile_size=8,
+                              light_culling="brute_force", tonemap="aces").render(scene, cam, time=0.5)
+    assert tiled.stats["lights"] == 22 and tiled.light_count.max() > 0
+    np.testing.assert_allclose(tiled.color, brute.color, rtol=0, atol=1e-5 * brute.color.max())
+    assert tiled.color.max() > 0.1 and not np.array_equal(tiled.image, brute.image)
+    assert_no_device_diagnostics(capfd)

@@ -19,7 +19,19 @@ Everything trimesh gets wrong or loses is read from the glTF JSON and buffers di
   exactly, and drops uvs of primitives without a material), so `Scene.uvs` equals the file data;
 * NORMAL comes from trimesh's cache of the file normals (process=False: no merging, no
   recomputation); primitives without NORMAL get area-weighted normals in world space;
-* the camera is the first perspective camera in traversal order (orthographic ones are skipped).
+* the camera is the first perspective camera in traversal order (orthographic ones are skipped);
+* `KHR_lights_punctual`: every node of the default scene that references a light adds one light,
+  in traversal order, placed by the node's world matrix (computed here from the JSON
+  matrix / TRS): position = the transformed origin, direction = the transformed local -Z,
+  normalized. `point` -> `Scene.add_point_light`, `spot` -> `Scene.add_spot_light` with
+  innerConeAngle (default 0) and outerConeAngle (default pi/4) in degrees. Color = `color`
+  (default [1, 1, 1]) x `intensity` (default 1). glTF intensities are photometric (candela for
+  point and spot lights, lux for directional ones); they are NOT rescaled: a 10 cd light gets
+  color 10, whatever units the renderer's falloff then assumes. `range` -> radius; without a range (infinite) the radius is
+  sqrt(256 * max(color * intensity)) clamped to [1e-3, 4 x scene diagonal] (see
+  `clrender.loaders.lights`). Node scale does not change a light's range or cone (spec).
+  `directional` lights are skipped with a warning and kept in
+  `Scene.settings["directional_lights"]` (direction, color x intensity).
 """
 from __future__ import annotations
 
@@ -34,14 +46,17 @@ from urllib.parse import unquote
 import numpy as np
 
 from ..camera import Camera
-from ..scene import Material, Scene, Texture
+from ..scene import Material, Scene, SceneError, Texture
 from .common import (Piece, assemble, check_faces, decode_image, load_images, trimesh_load,
                      trimesh_vertex_normals, world_piece)
 from .gltf_document import (MODE_FAN, MODE_STRIP, MODE_TRIANGLES, WRAP_MODES, Document, data_uri,
-                            load_document, texture_source)
+                            load_document, node_light, punctual_lights, texture_source)
+from .lights import AUTO_RADIUS_KEY, DIRECTIONAL_KEY, auto_radius, scene_diagonal, warn_directional
 
 # zfar absent (infinite projection): far = max(FAR_FROM_NEAR * znear, 2 * farthest scene corner)
 FAR_FROM_NEAR = 1000.0
+# KHR_lights_punctual allows outerConeAngle = pi/2; Scene.add_spot_light needs < 90 degrees
+MAX_SPOT_OUTER_DEG = 89.9
 
 
 # -- traversal --------------------------------------------------------------------------------------
@@ -210,6 +225,88 @@ def _camera(doc: Document, order: list[int], tm_scene, scene: Scene) -> Optional
     return None
 
 
+# -- KHR_lights_punctual -------------------------------------------------------------------------------------
+def _local_matrix(node: dict) -> np.ndarray:
+    """A node's local matrix: `matrix` (column-major) or T . R . S."""
+    if "matrix" in node:
+        return np.asarray(node["matrix"], np.float64).reshape(4, 4).T
+    x, y, z, w = np.asarray(node.get("rotation", [0.0, 0.0, 0.0, 1.0]), np.float64)
+    norm = np.sqrt(x * x + y * y + z * z + w * w)
+    if norm > 0:
+        x, y, z, w = x / norm, y / norm, z / norm, w / norm
+    r = np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+                  [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+                  [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
+    m = np.eye(4)
+    m[:3, :3] = r * np.asarray(node.get("scale", [1.0, 1.0, 1.0]), np.float64)
+    m[:3, 3] = node.get("translation", [0.0, 0.0, 0.0])
+    return m
+
+
+def _world_matrices(doc: Document, order: list[int]) -> dict[int, np.ndarray]:
+    """World matrix of every node in `order` (a pre-order traversal: parents come first)."""
+    nodes = doc.list("nodes")
+    parent = {c: n for n in order for c in nodes[n].get("children", [])}
+    world: dict[int, np.ndarray] = {}
+    for n in order:
+        local = _local_matrix(nodes[n])
+        world[n] = world[parent[n]] @ local if n in parent else local
+    return world
+
+
+def _lights(doc: Document, order: list[int], scene: Scene) -> None:
+    """Add the KHR_lights_punctual lights of the default scene's nodes to `scene` (see module doc)."""
+    lights = punctual_lights(doc)
+    nodes = doc.list("nodes")
+    refs = [(n, node_light(doc, n, nodes[n])) for n in order]
+    refs = [(n, k) for n, k in refs if k is not None]
+    if not refs:
+        return
+    world = _world_matrices(doc, order)
+    diagonal = scene_diagonal(scene)
+    directional, auto = [], []
+    for n, k in refs:
+        light = lights[k]
+        what = f"KHR_lights_punctual light {k}" + (f" ({light['name']!r})" if light.get("name") else "") + \
+            f" on node {n}"
+        m = world[n]
+        position = m[:3, 3]
+        direction = m[:3, :3] @ np.array([0.0, 0.0, -1.0])
+        norm = float(np.linalg.norm(direction))
+        color = np.asarray(light.get("color", [1.0, 1.0, 1.0]), np.float64) * float(light.get("intensity", 1.0))
+        kind = light["type"]
+        if kind != "point" and not (np.isfinite(norm) and norm > 0):
+            raise doc.err(f"{what}: the node's world transform has no -Z direction (zero scale?)")
+        if kind == "directional":
+            directional.append({"direction": (direction / norm).tolist(), "color": color.tolist()})
+            continue
+        if "range" in light:
+            radius = float(light["range"])
+        else:
+            radius = auto_radius(color, diagonal)
+            auto.append(len(scene.lights))
+        try:
+            if kind == "point":
+                scene.add_point_light(position, color, radius)
+            else:
+                spot = light.get("spot", {})
+                inner = np.degrees(float(spot.get("innerConeAngle", 0.0)))
+                outer = np.degrees(float(spot.get("outerConeAngle", np.pi / 4)))
+                if outer >= MAX_SPOT_OUTER_DEG:  # the spec allows pi/2; the renderer needs < 90 degrees
+                    warnings.warn(f"{doc.path}: {what}: outerConeAngle {outer:g} deg clamped to "
+                                  f"{MAX_SPOT_OUTER_DEG} deg", stacklevel=4)
+                    outer = MAX_SPOT_OUTER_DEG
+                    inner = min(inner, outer)
+                scene.add_spot_light(position, direction / norm, color, radius, inner, outer)
+        except SceneError as exc:
+            raise doc.err(f"{what}: {exc}") from None
+    if auto:
+        scene.settings[AUTO_RADIUS_KEY] = auto
+    if directional:
+        scene.settings[DIRECTIONAL_KEY] = directional
+        warn_directional(doc.path, len(directional), stacklevel=5)
+
+
 def _needs_own_reader(accessor: dict) -> bool:
     """trimesh ignores sparse data and the `normalized` flag: read those accessors ourselves."""
     return "sparse" in accessor or accessor.get("componentType") != 5126
@@ -288,4 +385,5 @@ def load_gltf(path) -> Scene:
 
     scene = assemble(pieces, materials, textures, str(path))
     scene.camera = _camera(doc, order, tm_scene, scene)
+    _lights(doc, order, scene)
     return scene

@@ -308,7 +308,9 @@ def _validate_inner(doc: Document) -> None:
             if mode == MODE_TRIANGLES and n % 3:
                 raise doc.err(f"{what}: {n} indices is not a multiple of 3 for TRIANGLES")
 
-    # nodes, scenes, cameras
+    # nodes, scenes, cameras, KHR_lights_punctual lights
+    lights = punctual_lights(doc)
+    _validate_lights(doc, lights)
     nodes = doc.list("nodes")
     for n, node in enumerate(nodes):
         if not isinstance(node, dict):
@@ -317,6 +319,12 @@ def _validate_inner(doc: Document) -> None:
             doc.get("meshes", node["mesh"], f"node {n}")
         if "camera" in node:
             doc.get("cameras", node["camera"], f"node {n}")
+        light_ref = node_light(doc, n, node)
+        if light_ref is not None:
+            _int(light_ref, f"node {n} extensions.KHR_lights_punctual.light", doc)
+            if light_ref >= len(lights):
+                raise doc.err(f"node {n} references KHR_lights_punctual light {light_ref}, which does not exist "
+                              f"(there are {len(lights)})")
         for c in node.get("children", []):
             if not isinstance(c, int) or not 0 <= c < len(nodes):
                 raise doc.err(f"node {n} has child {c!r}, which does not exist (there are {len(nodes)} nodes)")
@@ -353,6 +361,72 @@ def _validate_inner(doc: Document) -> None:
         mode = mat.get("alphaMode", "OPAQUE")
         if mode not in ("OPAQUE", "MASK", "BLEND"):
             raise doc.err(f"material {m}: unknown alphaMode {mode!r}")
+
+
+LIGHT_TYPES = ("directional", "point", "spot")
+
+
+def punctual_lights(doc: Document) -> list:
+    """The `KHR_lights_punctual` lights array of the document (empty when the extension is absent)."""
+    ext = doc.json.get("extensions") or {}
+    if not isinstance(ext, dict):
+        raise doc.err("top-level extensions must be an object")
+    lp = ext.get("KHR_lights_punctual")
+    if lp is None:
+        return []
+    if not isinstance(lp, dict) or not isinstance(lp.get("lights", []), list):
+        raise doc.err("extensions.KHR_lights_punctual.lights must be an array")
+    return lp.get("lights", [])
+
+
+def node_light(doc: Document, n: int, node: dict):
+    """The KHR_lights_punctual light index a node references, or None."""
+    ext = node.get("extensions") or {}
+    if not isinstance(ext, dict):
+        raise doc.err(f"node {n}: extensions must be an object")
+    ref = ext.get("KHR_lights_punctual")
+    if ref is None:
+        return None
+    if not isinstance(ref, dict) or "light" not in ref:
+        raise doc.err(f"node {n}: extensions.KHR_lights_punctual needs a 'light' index")
+    return ref["light"]
+
+
+def _finite(value, what: str, doc: Document, minimum=None, exclusive=False) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not np.isfinite(value):
+        raise doc.err(f"{what} must be a finite number, got {value!r}")
+    if minimum is not None and (value <= minimum if exclusive else value < minimum):
+        raise doc.err(f"{what} must be {'>' if exclusive else '>='} {minimum}, got {value!r}")
+    return float(value)
+
+
+def _validate_lights(doc: Document, lights: list) -> None:
+    """KHR_lights_punctual: types, colors, intensities, ranges and spot cone angles."""
+    for k, light in enumerate(lights):
+        if not isinstance(light, dict):
+            raise doc.err(f"KHR_lights_punctual light {k} must be an object")
+        what = f"KHR_lights_punctual light {k}" + (f" ({light['name']!r})" if light.get("name") else "")
+        kind = light.get("type")
+        if kind not in LIGHT_TYPES:
+            raise doc.err(f"{what}: type must be one of {LIGHT_TYPES}, got {kind!r}")
+        color = light.get("color", [1.0, 1.0, 1.0])
+        if not isinstance(color, list) or len(color) != 3:
+            raise doc.err(f"{what}: color must be 3 numbers, got {color!r}")
+        for c in color:
+            _finite(c, f"{what}: color", doc, 0.0)
+        _finite(light.get("intensity", 1.0), f"{what}: intensity", doc, 0.0)
+        if "range" in light:
+            _finite(light["range"], f"{what}: range", doc, 0.0, exclusive=True)
+        if kind == "spot":
+            spot = light.get("spot", {})
+            if not isinstance(spot, dict):
+                raise doc.err(f"{what}: spot must be an object")
+            inner = _finite(spot.get("innerConeAngle", 0.0), f"{what}: spot.innerConeAngle", doc, 0.0)
+            outer = _finite(spot.get("outerConeAngle", np.pi / 4), f"{what}: spot.outerConeAngle", doc, 0.0)
+            if inner > outer:
+                raise doc.err(f"{what}: spot.innerConeAngle ({inner}) is larger than spot.outerConeAngle ({outer})")
+            if outer > np.pi / 2 + 1e-6:
+                raise doc.err(f"{what}: spot.outerConeAngle ({outer}) must be <= pi/2")
 
 
 def _check_range(doc, what, view_index, view, offset, stride, elem, count) -> None:

@@ -1,6 +1,8 @@
 """TOML scene files: several meshes with transforms, a camera, render settings and lights.
 
 ```toml
+ambient = 0.05                # optional, top level (before any table): Scene.ambient, default 0.03
+
 [[mesh]]                      # any number, concatenated in file order
 path = "demo.gltf"            # relative to this file: .gltf .glb .obj .ply .stl
 name = "demo"                 # optional, prefixes the mesh names (default: the file name)
@@ -18,12 +20,37 @@ far = 100                     # optional, default 100
 width = 960
 height = 540
 
-[[light]]                     # -> Scene.settings["lights"], plain dicts (a later issue renders them)
-type = "directional"          # directional | point | spot
-direction = [-1, -2, -1]
-color = [1, 1, 1]
-intensity = 3.0
+[[light]]                     # any number -> Scene.lights, in file order
+type = "point"                # point | spot | directional
+position = [0, 3, 2]          # point, spot: required
+color = [1.0, 0.6, 0.3]       # optional, default [1, 1, 1]
+intensity = 10.0              # optional, default 1; multiplies color
+radius = 6.0                  # point, spot: optional (`range` is a synonym; at most one of the two)
+
+[[light]]
+type = "spot"
+position = [0, 6, 3]
+direction = [0, -1, -0.5]     # spot, directional: required (need not be unit length)
+inner_cone_deg = 15           # spot: optional, default 0
+outer_cone_deg = 25           # spot: optional, default 45; 0 <= inner <= outer < 90
+
+[lights]                      # optional
+random = { count = 64, seed = 7, radius = [0.5, 1.5], intensity = 1.0 }
 ```
+
+Lights: `Scene.lights` holds, in this order, the lights of the mesh files (glTF
+KHR_lights_punctual, moved by the mesh's transform), then the `[[light]]` tables in file order,
+then `[lights] random` (`Scene.add_random_lights(count, seed, radius, intensity)`, called once all
+meshes are loaded so the lights fill the whole scene's bounds; `count` is required, `seed`
+defaults to 0, `radius` (a number or [min, max]) to [0.5, 2.0], `intensity` to 1). A point or spot
+light without `radius`/`range` gets the infinite-range radius sqrt(256 * max(color * intensity))
+clamped to [1e-3, 4 x scene diagonal] (`clrender.loaders.lights`); radii and cone angles are not
+changed by mesh transforms. `type = "directional"` (direction, color, intensity) is not rendered
+yet: it goes to `Scene.settings["directional_lights"]` as {direction (unit), color x intensity}
+with a warning. `Scene.settings["lights"]` keeps the validated `[[light]]` tables as written.
+
+`ambient` lives at the top level (it is a Scene property, not a render setting); TOML puts keys
+written after a table header into that table, so write it before the first `[...]` line.
 
 Transform: world = T · R · S · local, with R = Rz · Ry · Rx (rotate about X first, then Y, then Z;
 angles in degrees) and `scale` a number or three numbers. Unknown tables or keys, and wrong types,
@@ -38,25 +65,41 @@ from pathlib import Path
 
 import numpy as np
 
+from .. import structs
 from ..camera import Camera
 from ..scene import Material, Scene, SceneError
 from .common import fail, transform_normals, transform_points
+from .lights import (AUTO_RADIUS_KEY, DIRECTIONAL_KEY, auto_radius, refresh_auto_radii, scene_diagonal,
+                     transform_lights, warn_directional)
 
-TOP_LEVEL = {"mesh", "camera", "render", "light"}
+TOP_LEVEL = {"mesh", "camera", "render", "light", "lights", "ambient"}
 MESH_KEYS = {"path", "name", "transform"}
 TRANSFORM_KEYS = {"translate", "rotate_deg", "scale"}
 CAMERA_KEYS = {"eye", "target", "up", "fov_y_deg", "near", "far"}
 # render settings understood by the renderer; extend this set when a new setting is added
 RENDER_KEYS = {"width", "height", "background", "exposure"}
-LIGHT_KEYS = {"type", "name", "position", "direction", "color", "intensity", "range",
+LIGHT_KEYS = {"type", "name", "position", "direction", "color", "intensity", "radius", "range",
               "inner_cone_deg", "outer_cone_deg"}
 LIGHT_TYPES = ("directional", "point", "spot")
+# keys each light type accepts (the union is LIGHT_KEYS)
+LIGHT_TYPE_KEYS = {
+    "point": {"type", "name", "position", "color", "intensity", "radius", "range"},
+    "spot": {"type", "name", "position", "direction", "color", "intensity", "radius", "range",
+             "inner_cone_deg", "outer_cone_deg"},
+    "directional": {"type", "name", "direction", "color", "intensity"},
+}
+LIGHT_REQUIRED = {"point": ("position",), "spot": ("position", "direction"), "directional": ("direction",)}
+LIGHTS_KEYS = {"random"}
+RANDOM_KEYS = {"count", "seed", "radius", "intensity"}
 
 
 def _unknown(path, table: str, data: dict, allowed: set) -> None:
     extra = sorted(set(data) - allowed)
     if extra:
-        raise fail(path, f"unknown key {extra[0]!r} in {table} (allowed: {', '.join(sorted(allowed))})")
+        hint = ""
+        if extra[0] == "ambient":
+            hint = "; ambient is a top-level key: write it before the first [table] line"
+        raise fail(path, f"unknown key {extra[0]!r} in {table} (allowed: {', '.join(sorted(allowed))}){hint}")
 
 
 def _table(path, name: str, value) -> dict:
@@ -104,8 +147,10 @@ def _mesh_transform(path, k: int, data) -> np.ndarray:
 
 
 def _transform_scene(scene: Scene, matrix: np.ndarray) -> Scene:
+    """Move a loaded mesh file's scene (geometry, camera, lights) by `matrix`; ValueError if degenerate."""
     if np.array_equal(matrix, np.eye(4)):
         return scene
+    transform_lights(scene, matrix)
     scene.positions = transform_points(matrix, scene.positions).astype(np.float32)
     scene.normals = transform_normals(matrix, scene.normals).astype(np.float32)
     if np.linalg.det(matrix[:3, :3]) < 0:
@@ -155,6 +200,7 @@ def _render(path, data) -> dict:
 
 
 def _lights(path, data) -> list[dict]:
+    """The [[light]] tables, validated, as written (numbers as floats)."""
     if not isinstance(data, list):
         raise fail(path, "light must be an array of tables ([[light]])")
     lights = []
@@ -162,24 +208,117 @@ def _lights(path, data) -> list[dict]:
         where = f"light[{k}]"
         light = _table(path, where, light)
         _unknown(path, where, light, LIGHT_KEYS)
-        if light.get("type") not in LIGHT_TYPES:
-            raise fail(path, f"{where}.type must be one of {LIGHT_TYPES}, got {light.get('type')!r}")
+        kind = light.get("type")
+        if kind not in LIGHT_TYPES:
+            raise fail(path, f"{where}.type must be one of {LIGHT_TYPES}, got {kind!r}")
+        _unknown(path, f"{where} (type {kind!r})", light, LIGHT_TYPE_KEYS[kind])
+        for key in LIGHT_REQUIRED[kind]:
+            if key not in light:
+                raise fail(path, f"{where} (type {kind!r}) needs {key!r}")
+        if "name" in light and not isinstance(light["name"], str):
+            raise fail(path, f"{where}.name must be a string")
         out = dict(light)
         for key in ("position", "direction", "color"):
             if key in out:
                 out[key] = _vector(path, f"{where}.{key}", out[key])
-        for key in ("intensity", "range", "inner_cone_deg", "outer_cone_deg"):
+        for key in ("intensity", "radius", "range", "inner_cone_deg", "outer_cone_deg"):
             if key in out:
                 out[key] = _number(path, f"{where}.{key}", out[key])
+        if "radius" in out and "range" in out:
+            raise fail(path, f"{where}: give 'radius' or 'range' (a synonym), not both")
+        for key in ("radius", "range"):
+            if key in out and out[key] <= 0:
+                raise fail(path, f"{where}.{key} must be > 0, got {out[key]!r}")
+        if out.get("intensity", 1.0) < 0:
+            raise fail(path, f"{where}.intensity must be >= 0, got {out['intensity']!r}")
+        if any(c < 0 for c in out.get("color", ())):
+            raise fail(path, f"{where}.color must be non-negative, got {out['color']!r}")
+        if "direction" in out and not any(out["direction"]):
+            raise fail(path, f"{where}.direction must not be the zero vector")
+        if kind == "spot":
+            inner, outer = out.get("inner_cone_deg", 0.0), out.get("outer_cone_deg", 45.0)
+            if inner < 0:
+                raise fail(path, f"{where}.inner_cone_deg must be >= 0, got {inner!r}")
+            if inner > outer:
+                raise fail(path, f"{where}.inner_cone_deg ({inner:g}) is larger than outer_cone_deg ({outer:g})")
+            if outer >= 90:
+                raise fail(path, f"{where}.outer_cone_deg must be < 90, got {outer!r}")
         lights.append(out)
     return lights
+
+
+def _add_lights(path, scene: Scene, lights: list[dict]) -> None:
+    """Append validated [[light]] tables to `scene` (point/spot -> Scene.lights, directional -> settings)."""
+    diagonal = scene_diagonal(scene)
+    auto = list(scene.settings.get(AUTO_RADIUS_KEY, []))
+    directional = list(scene.settings.get(DIRECTIONAL_KEY, []))
+    for k, light in enumerate(lights):
+        kind = light["type"]
+        color = np.asarray(light.get("color", [1.0, 1.0, 1.0]), np.float64) * light.get("intensity", 1.0)
+        if kind == "directional":
+            d = np.asarray(light["direction"], np.float64)
+            directional.append({"direction": (d / np.linalg.norm(d)).tolist(), "color": color.tolist()})
+            continue
+        radius = light.get("radius", light.get("range"))
+        if radius is None:
+            radius = auto_radius(color, diagonal)
+            auto.append(len(scene.lights))
+        try:
+            if kind == "point":
+                scene.add_point_light(light["position"], color, radius)
+            else:
+                scene.add_spot_light(light["position"], light["direction"], color, radius,
+                                     light.get("inner_cone_deg", 0.0), light.get("outer_cone_deg", 45.0))
+        except SceneError as exc:
+            raise fail(path, f"light[{k}]: {exc}") from None
+    if auto:
+        scene.settings[AUTO_RADIUS_KEY] = auto
+    if directional:
+        scene.settings[DIRECTIONAL_KEY] = directional
+
+
+def _random_lights(path, data) -> dict:
+    """[lights] -> keyword arguments for Scene.add_random_lights (None when there is no `random`)."""
+    data = _table(path, "[lights]", data)
+    _unknown(path, "[lights]", data, LIGHTS_KEYS)
+    if "random" not in data:
+        raise fail(path, "[lights] is empty: expected random = { count = N, seed = S, radius = [min, max], "
+                         "intensity = I }")
+    where = "lights.random"
+    rnd = _table(path, where, data["random"])
+    _unknown(path, where, rnd, RANDOM_KEYS)
+    if "count" not in rnd:
+        raise fail(path, f"{where} needs 'count'")
+    out = {}
+    for key, default in (("count", None), ("seed", 0)):
+        value = rnd.get(key, default)
+        if isinstance(value, bool) or not isinstance(value, int) or value < 0:
+            raise fail(path, f"{where}.{key} must be an integer >= 0, got {value!r}")
+        out[key] = value
+    radius = rnd.get("radius", [0.5, 2.0])
+    if isinstance(radius, list):
+        radius = _vector(path, f"{where}.radius", radius, 2)
+    else:
+        radius = [_number(path, f"{where}.radius", radius)] * 2
+    if not 0 < radius[0] <= radius[1]:
+        raise fail(path, f"{where}.radius must satisfy 0 < min <= max, got {rnd['radius']!r}")
+    out["radius"] = tuple(radius)
+    out["intensity"] = _number(path, f"{where}.intensity", rnd.get("intensity", 1.0))
+    if out["intensity"] < 0:
+        raise fail(path, f"{where}.intensity must be >= 0, got {out['intensity']!r}")
+    return out
 
 
 def _concatenate(parts: list[tuple[str, Scene]], source: str) -> Scene:
     positions, normals, uvs, triangles, tri_mat, tri_mesh, tri_face = [], [], [], [], [], [], []
     materials, textures, names = [], [], []
-    v_off = 0
+    lights, auto, directional = [], [], []
+    v_off = l_off = 0
     for label, s in parts:
+        auto.extend(int(i) + l_off for i in s.settings.get(AUTO_RADIUS_KEY, []))
+        lights.append(s.lights)
+        l_off += len(s.lights)
+        directional.extend(s.settings.get(DIRECTIONAL_KEY, []))
         t_off, m_off, n_off = len(textures), len(materials), len(names)
         textures.extend(s.textures)
         materials.extend(replace(m, base_color_texture=m.base_color_texture + t_off)
@@ -199,12 +338,18 @@ def _concatenate(parts: list[tuple[str, Scene]], source: str) -> Scene:
     def cat(items, shape, dtype):
         return np.concatenate(items).astype(dtype) if items else np.zeros(shape, dtype)
 
+    settings = {}
+    if auto:
+        settings[AUTO_RADIUS_KEY] = auto
+    if directional:
+        settings[DIRECTIONAL_KEY] = directional
     return Scene(cat(positions, (0, 3), np.float32), cat(normals, (0, 3), np.float32), cat(uvs, (0, 2), np.float32),
                  cat(triangles, (0, 3), np.int32), cat(tri_mat, (0,), np.int32),
                  materials=materials or [Material()],
                  textures=textures, mesh_names=names,
                  triangle_mesh=cat(tri_mesh, (0,), np.int32), triangle_face=cat(tri_face, (0,), np.int32),
-                 source=source)
+                 source=source, settings=settings,
+                 lights=np.concatenate(lights) if lights else np.zeros(0, structs.light_dtype))
 
 
 def load_toml(path) -> Scene:
@@ -220,6 +365,17 @@ def load_toml(path) -> Scene:
     except OSError as exc:
         raise fail(path, f"cannot read file ({exc.strerror or exc})") from None
     _unknown(path, "the top level", data, TOP_LEVEL)
+
+    # validate the other tables first: a typo fails before any mesh file is read
+    ambient = None
+    if "ambient" in data:
+        ambient = _number(path, "ambient", data["ambient"])
+        if ambient < 0:
+            raise fail(path, f"ambient must be >= 0, got {ambient!r}")
+    render = _render(path, data["render"]) if "render" in data else None
+    tables = _lights(path, data["light"]) if "light" in data else None
+    random = _random_lights(path, data["lights"]) if "lights" in data else None
+    camera = _camera(path, data["camera"]) if "camera" in data else None
 
     meshes = data.get("mesh", [])
     if not isinstance(meshes, list):
@@ -245,17 +401,26 @@ def load_toml(path) -> Scene:
             sub = load_scene(file)
         except SceneError as exc:
             raise SceneError(f"{path}: {where}: {exc}") from None
-        parts.append((label, _transform_scene(sub, matrix)))
+        try:
+            parts.append((label, _transform_scene(sub, matrix)))
+        except ValueError as exc:
+            raise fail(path, f"{where}.transform: {exc}") from None
 
     scene = _concatenate(parts, str(path))
-    if "camera" in data:
-        scene.camera = _camera(path, data["camera"])
-    else:
-        scene.camera = next((s.camera for _, s in parts if s.camera is not None), None)
-    settings = {}
-    if "render" in data:
-        settings["render"] = _render(path, data["render"])
-    if "light" in data:
-        settings["lights"] = _lights(path, data["light"])
-    scene.settings = settings
+    scene.camera = camera if camera is not None else next((s.camera for _, s in parts if s.camera is not None), None)
+    if ambient is not None:
+        scene.ambient = ambient
+    if render is not None:
+        scene.settings["render"] = render
+    if tables is not None:
+        scene.settings["lights"] = tables
+        _add_lights(path, scene, tables)
+    if random is not None:
+        try:
+            scene.add_random_lights(random["count"], random["seed"], random["radius"], random["intensity"])
+        except SceneError as exc:
+            raise fail(path, f"lights.random: {exc}") from None
+    refresh_auto_radii(scene)
+    n_directional = sum(1 for t in tables or () if t["type"] == "directional")
+    warn_directional(path, n_directional, stacklevel=4)
     return scene

@@ -3,10 +3,11 @@ from .base import RenderPass, Resources
 from .binning import BinningPass
 from .gbuffer import GBufferPass
 from .light_cull import LightCullPass
+from .particles import ParticlesPass
 from .raster import RasterPass
 from .setup import SetupPass
 from .shade import ShadePass
 from .tonemap import TonemapPass
 
 __all__ = ["RenderPass", "Resources", "SetupPass", "BinningPass", "RasterPass", "GBufferPass",
-           "LightCullPass", "ShadePass", "TonemapPass"]
+           "LightCullPass", "ParticlesPass", "ShadePass", "TonemapPass"]

@@ -11,7 +11,7 @@ from .base import RenderPass, empty, round_up
 class GBufferPass(RenderPass):
     name = "gbuffer"
     inputs = ("vis_depth", "vis_prim", "prims", "positions", "normals", "uvs", "triangles", "materials",
-              "texels", "srgb_lut", "tex_infos", "tex_levels", "prev_view_proj")
+              "texels", "srgb_lut", "srgb_encode", "tex_infos", "tex_levels", "prev_view_proj")
     outputs = ("gbuffer",)
 
     def __init__(self, device, config):
@@ -31,6 +31,6 @@ class GBufferPass(RenderPass):
                     res["vis_depth"].data, res["vis_prim"].data, res["prims"].data,
                     np.int32(w), np.int32(h), np.float32(res["far"]),
                     res["positions"].data, res["normals"].data, res["uvs"].data, res["triangles"].data,
-                    res["materials"].data, res["texels"].data, res["srgb_lut"].data,
+                    res["materials"].data, res["texels"].data, res["srgb_lut"].data, res["srgb_encode"].data,
                     res["tex_infos"].data, res["tex_levels"].data,
                     res["prev_view_proj"].data, np.int32(res["has_prev"]), self.gbuffer.data)

@@ -12,7 +12,7 @@ OPERATORS = {"clamp": 0, "reinhard": 1, "aces": 2}
 
 class TonemapPass(RenderPass):
     name = "tonemap"
-    inputs = ("color",)
+    inputs = ("color", "srgb_encode")
     outputs = ("image",)
 
     def __init__(self, device, config):
@@ -30,4 +30,4 @@ class TonemapPass(RenderPass):
     def run(self, res):
         npix = res["width"] * res["height"]
         self.kernel(self.queue, (round_up(-(-npix // self.vec), 64),), None, res["color"].data, np.int32(npix),
-                    np.float32(self.config.exposure), self.image.data)
+                    np.float32(self.config.exposure), res["srgb_encode"].data, self.image.data)

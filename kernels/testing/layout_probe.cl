@@ -23,16 +23,20 @@ kernel void struct_layout(global int* out)
     out[i++] = OFF(TexInfo, wrap_s); out[i++] = OFF(TexInfo, wrap_t);
     out[i++] = sizeof(TexLevel); out[i++] = OFF(TexLevel, offset); out[i++] = OFF(TexLevel, width);
     out[i++] = OFF(TexLevel, height); out[i++] = OFF(TexLevel, pad);
+    out[i++] = sizeof(Light);    out[i++] = OFF(Light, position); out[i++] = OFF(Light, radius);
+    out[i++] = OFF(Light, color); out[i++] = OFF(Light, type); out[i++] = OFF(Light, direction);
+    out[i++] = OFF(Light, cos_outer); out[i++] = OFF(Light, cos_inner); out[i++] = OFF(Light, pad);
 }
 
 /* in: float4 per item (x, y, z, w); out: uint4 per item: srgb8x3(xyz), oct12x2(xyz),
  * log2unorm8(w), half2(x, y); out2: pack_float2((x, y), 16) — the report's packing. */
-kernel void pack_probe(global const float4* in, int n, global uint4* out, global uint* out2)
+kernel void pack_probe(global const float4* in, constant float2* srgb_encode, int n, global uint4* out,
+                       global uint* out2)
 {
     int i = get_global_id(0);
     if (i >= n) return;
     float4 v = in[i];
-    out[i] = (uint4)(pack_srgb8x3V(v.x, v.y, v.z), pack_oct12x2V(v.x, v.y, v.z), pack_log2unorm8V(v.w),
+    out[i] = (uint4)(pack_srgb8x3V(v.x, v.y, v.z, srgb_encode), pack_oct12x2V(v.x, v.y, v.z), pack_log2unorm8V(v.w),
                      pack_half2V(v.x, v.y));
     out2[i] = pack_float2V(v.x, v.y, 16);
 }
