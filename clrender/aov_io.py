@@ -103,6 +103,13 @@ def _preview_velocity(vel: np.ndarray) -> np.ndarray:
     return _u8(rgb)
 
 
+def _preview_heat(counts: np.ndarray) -> np.ndarray:
+    """Lights per tile as a black -> red -> yellow -> white heat map (scaled to the maximum)."""
+    t = np.clip(counts.astype(np.float64) / max(int(counts.max()), 1), 0.0, 1.0)[..., None]
+    ramp = np.clip(np.concatenate([t * 3.0, t * 3.0 - 1.0, t * 3.0 - 2.0], -1), 0.0, 1.0)
+    return _u8(ramp)
+
+
 def preview(name: str, data: np.ndarray, background: np.ndarray) -> np.ndarray:
     """A viewable uint8 image of AOV `name`."""
     from .gbuffer import SPEC_POWER_LOG2_MAX, linear_to_srgb8
@@ -123,6 +130,10 @@ def preview(name: str, data: np.ndarray, background: np.ndarray) -> np.ndarray:
         return _preview_ids(data)
     if name == "velocity":
         return _preview_velocity(data)
+    if name == "color":                    # linear HDR: Reinhard, as the default image
+        return linear_to_srgb8(data / (1.0 + np.maximum(data, 0.0)))
+    if name == "light_count":
+        return _preview_heat(data)
     raise ValueError(f"no preview for AOV {name!r}")
 
 

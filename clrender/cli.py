@@ -134,7 +134,13 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--device", metavar="NAME",
                    help="OpenCL device: a name substring or P:D (default: $CLRENDER_DEVICE, else a GPU, "
                         "else PoCL); see `clrender devices`")
-    r.add_argument("--tile-size", type=int, metavar="N", help="tile size in pixels: 8, 16 or 32 (default 16)")
+    r.add_argument("--tile-size", type=int, metavar="N", help="raster tile size in pixels: 8, 16 or 32 (default 8)")
+    r.add_argument("--light-tile-size", type=int, metavar="N", help="light-culling tile size: 8, 16 or 32 (default 16)")
+    r.add_argument("--light-culling", choices=("tiled", "brute_force"), help="light culling (default tiled)")
+    r.add_argument("--tonemap", choices=("reinhard", "aces", "clamp"), help="tone-mapping operator (default reinhard)")
+    r.add_argument("--exposure", type=float, metavar="X", help="exposure multiplier before tone mapping (default 1)")
+    r.add_argument("--time", type=float, default=0.0, metavar="SECONDS",
+                   help="animation time: places the scene's light particles (default 0)")
     r.add_argument("--aov", type=_aov_list, default=[], metavar="LIST",
                    help=f"comma-separated AOVs to write: {','.join(AOVS)}")
     r.add_argument("--camera-eye", type=_vec3, metavar="X,Y,Z", help="camera position (overrides the scene's)")
@@ -275,10 +281,16 @@ def cmd_render(args) -> int:
             raise CLIError(f"{s}: file not found")
         if not p.is_file():
             raise CLIError(f"{s}: not a file")
-    try:
-        config = RenderConfig() if args.tile_size is None else RenderConfig(tile_size=args.tile_size)
-    except ValueError as exc:
-        raise CLIError(f"--tile-size: {exc}") from None
+    options = {name: value for name, value in (
+        ("tile_size", args.tile_size), ("light_tile_size", args.light_tile_size),
+        ("light_culling", args.light_culling), ("tonemap", args.tonemap), ("exposure", args.exposure))
+        if value is not None}
+    for name, value in options.items():          # name the offending flag
+        try:
+            RenderConfig.from_options(**{name: value})
+        except ValueError as exc:
+            raise CLIError(f"--{name.replace('_', '-')}: {exc}") from None
+    config = RenderConfig.from_options(**options)
     images = _plan_outputs(scenes, args.output)
     exr = bool(args.aov) and any(a not in INT_AOVS for a in args.aov) and exr_available()
     _check_distinct(scenes, images, args.aov, exr)
@@ -299,7 +311,7 @@ def cmd_render(args) -> int:
             if renderer is None:
                 renderer = renderers[(width, height)] = Renderer(width, height, device=info, config=config)
             start = time.perf_counter()
-            frame = renderer.render(scene, camera)
+            frame = renderer.render(scene, camera, time=args.time)
             wall_ms = (time.perf_counter() - start) * 1e3
             write_outputs(frame, image, args.aov)
         except (CLIError, ValueError, OSError) as exc:     # SceneError is a ValueError

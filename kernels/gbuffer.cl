@@ -74,13 +74,13 @@ static rgbaV bilinearV(global const uint* texels, constant float* lut, intV acti
                     offset + yb * width + xa, offset + yb * width + xb };
     rgbaV t[4];
     for (int k = 0; k < 4; ++k) {
-        for (int l = 0; l < VEC; ++l) {
-            uint w = LANE_I(active, l) ? texels[LANE_I(idx[k], l)] : 0u;
-            LANE_F(t[k].r, l) = lut[w & 255u];
-            LANE_F(t[k].g, l) = lut[(w >> 8) & 255u];
-            LANE_F(t[k].b, l) = lut[(w >> 16) & 255u];
-            LANE_F(t[k].a, l) = (float)(w >> 24) * (1.0f / 255.0f);
-        }
+        intV i = select((intV)0, idx[k], active);          /* inactive lanes read texel 0 */
+        uintV w = GATHER_U(texels, i);
+        intV c0 = as_intV(w & 255u), c1 = as_intV((w >> 8) & 255u), c2 = as_intV((w >> 16) & 255u);
+        t[k].r = GATHER_F(lut, c0);
+        t[k].g = GATHER_F(lut, c1);
+        t[k].b = GATHER_F(lut, c2);
+        t[k].a = convert_floatV(w >> 24) * (1.0f / 255.0f);
     }
     rgbaV r;
 #define BILERP(c) { floatV top = t[0].c + (t[1].c - t[0].c) * ax, bot = t[2].c + (t[3].c - t[2].c) * ax; \

@@ -64,4 +64,23 @@ typedef CAT(float, VEC) floatV;
 #define vstore_halfV CAT(CAT(vstore_half, VEC), _rte)
 #endif
 
+/* GATHER_F/I/U(p, idx): a vector of p[idx lane by lane], written as a vector literal so the
+ * compiler can emit a hardware gather instead of lane-by-lane stores into memory. */
+#if VEC == 1
+#define GATHER_T(T, p, i) ((T)(p)[i])
+#elif VEC == 4
+#define GATHER_T(T, p, i) ((T)((p)[(i).s0], (p)[(i).s1], (p)[(i).s2], (p)[(i).s3]))
+#elif VEC == 8
+#define GATHER_T(T, p, i) ((T)((p)[(i).s0], (p)[(i).s1], (p)[(i).s2], (p)[(i).s3], \
+                               (p)[(i).s4], (p)[(i).s5], (p)[(i).s6], (p)[(i).s7]))
+#else
+#define GATHER_T(T, p, i) ((T)((p)[(i).s0], (p)[(i).s1], (p)[(i).s2], (p)[(i).s3], \
+                               (p)[(i).s4], (p)[(i).s5], (p)[(i).s6], (p)[(i).s7], \
+                               (p)[(i).s8], (p)[(i).s9], (p)[(i).sa], (p)[(i).sb], \
+                               (p)[(i).sc], (p)[(i).sd], (p)[(i).se], (p)[(i).sf]))
+#endif
+#define GATHER_F(p, i) GATHER_T(floatV, p, i)
+#define GATHER_I(p, i) GATHER_T(intV, p, i)
+#define GATHER_U(p, i) GATHER_T(uintV, p, i)
+
 #endif
