@@ -24,6 +24,7 @@ class RenderConfig:
     tile_size: int = 8         # raster tiles; bench.gbuffer on a 2-core AVX-512 CPU: 8 < 16 < 32 ms
     light_tile_size: int = 16  # light-culling tiles
     light_culling: str = "tiled"
+    light_depth_mask: bool = False   # Harada's 2.5D culling: 32 depth slices per tile
     tonemap: str = "reinhard"
     exposure: float = 1.0
 
@@ -34,6 +35,8 @@ class RenderConfig:
             raise ValueError(f"light_tile_size must be one of {TILE_SIZES}, got {self.light_tile_size!r}")
         if self.light_culling not in LIGHT_CULLING:
             raise ValueError(f"light_culling must be one of {LIGHT_CULLING}, got {self.light_culling!r}")
+        if not isinstance(self.light_depth_mask, bool):
+            raise ValueError(f"light_depth_mask must be True or False, got {self.light_depth_mask!r}")
         if self.tonemap not in TONEMAPS:
             raise ValueError(f"tonemap must be one of {TONEMAPS}, got {self.tonemap!r}")
         if not (isinstance(self.exposure, (int, float)) and np.isfinite(self.exposure) and self.exposure > 0):

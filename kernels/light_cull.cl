@@ -5,7 +5,9 @@
  *     points, the cone's bounding sphere for spots) in view space, as SoA arrays padded to a
  *     multiple of VEC with radius -1 (never hits).
  *  2. `tile_depth_bounds`: one work-item per LTILE×LTILE tile: min/max view depth of its
- *     foreground pixels from the G-buffer (+inf/-inf for an empty tile: no light touches it).
+ *     foreground pixels from the G-buffer (+inf/-inf for an empty tile: no light touches it),
+ *     and with DEPTH_MASK Harada's 2.5D culling mask: which of 32 slices of [min, max] hold a
+ *     pixel, so a light floating in the empty gap of a depth discontinuity is rejected.
  *  3. `light_cull_count` / `light_cull_fill`: one work-item per tile tests every light, VEC
  *     lights at a time, against the tile's four side planes (through the eye) and its depth
  *     range; count, prefix sum on the host (pyopencl scan), then fill in light-index order, so
@@ -13,7 +15,7 @@
  *     buffer grows when the total says it must.
  *
  * Buffers: lights Light[n]; view float[16] world->view row-major; gbuffer uint[GB_PLANES][H·W];
- *          sphere_x/y/z/r float[n_padded]; tile_depth float2[tiles];
+ *          sphere_x/y/z/r float[n_padded]; tile_depth float4[tiles] (min, max, mask bits, 0);
  *          tile_light_counts/offsets int[tiles]; tile_lights int[list_capacity].
  * Work-groups: 1-D, any size; no barriers, no local memory.
  */
@@ -23,6 +25,9 @@
 
 #ifndef LTILE
 #define LTILE 16
+#endif
+#ifndef DEPTH_MASK
+#define DEPTH_MASK 0
 #endif
 
 kernel void light_view_bounds(global const Light* lights, int n_lights, int n_padded, global const float* view,
@@ -58,7 +63,7 @@ kernel void light_view_bounds(global const Light* lights, int n_lights, int n_pa
 }
 
 kernel void tile_depth_bounds(global const uint* gbuffer, int width, int height, float far,
-                              int tiles_x, int tiles_y, global float2* tile_depth)
+                              int tiles_x, int tiles_y, global float4* tile_depth)
 {
     int t = get_global_id(0);
     if (t >= tiles_x * tiles_y) return;
@@ -71,7 +76,17 @@ kernel void tile_depth_bounds(global const uint* gbuffer, int width, int height,
             float z = depth[y * width + x];
             if (z < INFINITY) { lo = fmin(lo, z); hi = fmax(hi, z); }
         }
-    tile_depth[t] = (float2)(lo * far, hi * far);
+    uint mask = 0xffffffffu;
+#if DEPTH_MASK
+    mask = 0u;
+    float scale = hi > lo ? 32.0f / (hi - lo) : 0.0f;
+    for (int y = y0; y < y1; ++y)
+        for (int x = x0; x < x1; ++x) {
+            float z = depth[y * width + x];
+            if (z < INFINITY) mask |= 1u << min((int)((z - lo) * scale), 31);
+        }
+#endif
+    tile_depth[t] = (float4)(lo * far, hi * far, as_float(mask), 0.0f);
 }
 
 /* The tile's side planes in view space: inside when dot(n, p) >= 0; n unit. */
@@ -91,7 +106,7 @@ static TilePlanes tile_planes(int t, int tiles_x, int width, int height, float t
     return p;
 }
 
-static inline intV sphere_in_tile(const TilePlanes* p, float2 depth, floatV x, floatV y, floatV z, floatV r)
+static inline intV sphere_in_tile(const TilePlanes* p, float4 depth, floatV x, floatV y, floatV z, floatV r)
 {
     floatV neg_r = -r;
     intV hit = r >= 0.0f;
@@ -99,19 +114,28 @@ static inline intV sphere_in_tile(const TilePlanes* p, float2 depth, floatV x, f
     hit &= (p->right.x * x + p->right.z * z) >= neg_r;
     hit &= (p->bottom.y * y + p->bottom.z * z) >= neg_r;
     hit &= (p->top.y * y + p->top.z * z) >= neg_r;
-    hit &= (-z + r >= depth.x) & (-z - r <= depth.y);       /* view depth = -z */
+    floatV near_z = -z - r, far_z = -z + r;                 /* the sphere's view-depth range */
+    hit &= (far_z >= depth.x) & (near_z <= depth.y);
+#if DEPTH_MASK
+    /* The light's slices of the tile's [min, max] must meet an occupied one. */
+    float scale = depth.y > depth.x ? 32.0f / (depth.y - depth.x) : 0.0f;
+    intV s0 = convert_intV(clamp((near_z - depth.x) * scale, 0.0f, 31.0f));
+    intV s1 = convert_intV(clamp((far_z - depth.x) * scale, 0.0f, 31.0f));
+    uintV light_mask = ((uintV)0xffffffffu >> as_uintV(31 - s1)) & ((uintV)0xffffffffu << as_uintV(s0));
+    hit &= (light_mask & as_uint(depth.z)) != 0u;
+#endif
     return hit;
 }
 
 #define CULL_ARGS global const float* sphere_x, global const float* sphere_y, global const float* sphere_z, \
-    global const float* sphere_r, int n_padded, global const float2* tile_depth, int tiles_x, int tiles_y, \
+    global const float* sphere_r, int n_padded, global const float4* tile_depth, int tiles_x, int tiles_y, \
     int width, int height, float tan_x, float tan_y
 
 kernel void light_cull_count(CULL_ARGS, global int* tile_light_counts)
 {
     int t = get_global_id(0);
     if (t >= tiles_x * tiles_y) return;
-    float2 depth = tile_depth[t];
+    float4 depth = tile_depth[t];
     int count = 0;
     if (depth.x <= depth.y) {
         TilePlanes p = tile_planes(t, tiles_x, width, height, tan_x, tan_y);
@@ -140,7 +164,7 @@ kernel void light_cull_fill(CULL_ARGS, global const int* tile_light_offsets, int
 {
     int t = get_global_id(0);
     if (t >= tiles_x * tiles_y) return;
-    float2 depth = tile_depth[t];
+    float4 depth = tile_depth[t];
     if (!(depth.x <= depth.y)) return;
     TilePlanes p = tile_planes(t, tiles_x, width, height, tan_x, tan_y);
     int slot = tile_light_offsets[t];

@@ -138,6 +138,29 @@ def first_hit(origin, direction, with_sphere=True, with_wall=True):
     return None if best is None else (best[1], best[2])
 
 
+def rim_lights(camera, width, height, eps=0.004, r=3.0) -> list:
+    """Lights whose center lies outside a tile's frustum and whose sphere reaches only the nearest
+    pixel centers of that tile, by a hair (d = r·(1 - eps) at the first/last pixel column or row
+    across a tile border common to 8/16/32-pixel tiles). Their light there is ~1e-7 of their color,
+    so only `light_count` (conservative culling) can see them, which is the point: a culler whose
+    tile planes are a pixel off, or whose sphere-plane test shrinks r by a few %, misses them."""
+    eye = np.asarray(camera.eye, np.float64)
+    bx, by = (64 if width > 64 else 32), 32
+    recs = []
+    # (boundary point, first pixel center across it), both along a row or a column
+    cases = [((bx, 20.5), (bx + 0.5, 20.5)), ((bx, 20.5), (bx - 0.5, 20.5)),
+             ((bx - 32.5, by), (bx - 32.5, by + 0.5)), ((bx - 32.5, by), (bx - 32.5, by - 0.5))]
+    for (bpx, bpy), (qpx, qpy) in cases:
+        b = first_hit(eye, pixel_ray(camera, width, height, bpx, bpy))
+        q = first_hit(eye, pixel_ray(camera, width, height, qpx, qpy))
+        if b is None or q is None or b[1][2] < 0.99 or q[1][2] < 0.99:       # both on the back wall
+            continue
+        u = (q[0] - b[0]) / np.linalg.norm(q[0] - b[0])
+        center = q[0] - r * (1 - eps) * u + 1e-3 * q[1]
+        recs.append(dict(position=center, radius=r, color=(0.5, 0.5, 0.5)))
+    return recs
+
+
 def special_lights(camera, width, height) -> list:
     """The hard cases for a tiled culler, most interesting first."""
     eye = np.asarray(camera.eye, np.float64)
@@ -147,6 +170,7 @@ def special_lights(camera, width, height) -> list:
         # the camera inside a light's radius (its sphere contains the eye: every tile plane test passes)
         dict(position=eye + 0.3 * fwd + 0.2 * right, radius=7.0, color=(0.35, 0.3, 0.25)),
     ]
+    recs += rim_lights(camera, width, height)
     # lights centered on tile corners common to 8/16/32-pixel tiles, just above the surface
     corners = [(64, 32), (32, 64), (96, 32), (32, 32), (64, 64)]
     for k, (px, py) in enumerate(corners):
@@ -161,26 +185,27 @@ def special_lights(camera, width, height) -> list:
         else:   # a narrow spot aimed at the corner point from 1 unit along the normal
             recs.append(dict(position=p + 1.0 * n, radius=1.6, color=(1.0, 2.0, 1.5),
                              direction=-n, inner=6.0, outer=11.0))
+    # grazing a tile's depth range: a light in front of the wall whose radius barely reaches it
+    # (by 0.5 %), one behind the wall reaching its front by as little, and one grazing the sphere's front
+    r = 2.0
+    recs.append(dict(position=(-1.5, 2.5, WALL_Z + 0.995 * r), radius=r, color=(8.0, 4.0, 2.0)))
+    recs.append(dict(position=(1.5, 3.0, WALL_Z - 0.995 * r), radius=r, color=(8.0, 4.0, 2.0)))
+    to_eye = (eye - SPHERE_C) / np.linalg.norm(eye - SPHERE_C)
+    recs.append(dict(position=SPHERE_C + to_eye * (SPHERE_R + 0.995 * 1.0), radius=1.0, color=(6.0, 6.0, 2.0)))
     # behind the camera: one whose sphere reaches into the view (lights the near floor), one that does not
     recs.append(dict(position=eye + 1.0 * back - 0.8 * up, radius=4.0, color=(0.6, 0.7, 1.0)))
     recs.append(dict(position=eye + 2.5 * back, radius=0.8, color=(5.0, 5.0, 5.0)))
-    # grazing: a light in front of the wall whose radius barely reaches it (a disk ~0.1 wide lit)
-    r = 0.5
-    recs.append(dict(position=(-1.5, 2.5, WALL_Z + 0.98 * r), radius=r, color=(8.0, 4.0, 2.0)))
-    # grazing the sphere's front from the camera side, and one just short of it (lights nothing)
-    to_eye = (eye - SPHERE_C) / np.linalg.norm(eye - SPHERE_C)
-    recs.append(dict(position=SPHERE_C + to_eye * (SPHERE_R + 0.97 * 0.3), radius=0.3, color=(6.0, 6.0, 2.0)))
-    side = SPHERE_C + np.array([1.0, 0.6, 0.3]) / np.linalg.norm([1.0, 0.6, 0.3]) * (SPHERE_R + 0.4 * 1.02)
-    recs.append(dict(position=side, radius=0.4, color=(3.0, 3.0, 3.0)))
-    # a light in the depth gap between the sphere and the wall, reaching neither
-    recs.append(dict(position=(0.4, 1.0, -5.6), radius=0.45, color=(4.0, 1.0, 1.0)))
     # a flashlight from the eye, a wide spot on the floor, a hard-edged spot (inner == outer)
     recs.append(dict(position=eye, radius=12.0, color=(0.5, 0.5, 0.4), direction=fwd, inner=10.0, outer=18.0))
     recs.append(dict(position=(-2.0, 3.0, -2.0), radius=4.5, color=(1.2, 1.0, 0.8),
                      direction=(0.3, -1.0, -0.2), inner=25.0, outer=45.0))
     recs.append(dict(position=(2.5, 2.0, -5.0), radius=5.0, color=(0.8, 1.2, 0.8),
                      direction=(0.2, -1.0, 0.5), inner=20.0, outer=20.0))
-    # a spot behind the wall pointing at it (lights its back: nothing visible) and one under the floor
+    # just short of the sphere (lights nothing); in the depth gap between the sphere and the wall
+    side = SPHERE_C + np.array([1.0, 0.6, 0.3]) / np.linalg.norm([1.0, 0.6, 0.3]) * (SPHERE_R + 0.4 * 1.02)
+    recs.append(dict(position=side, radius=0.4, color=(3.0, 3.0, 3.0)))
+    recs.append(dict(position=(0.4, 1.0, -5.6), radius=0.45, color=(4.0, 1.0, 1.0)))
+    # a spot behind the wall pointing at it (lights its back: nothing visible) and a light under the floor
     recs.append(dict(position=(1.0, 2.0, WALL_Z - 0.5), radius=2.0, color=(3, 3, 3),
                      direction=(0, 0, 1), inner=30, outer=40))
     recs.append(dict(position=(-1.0, -0.3, -2.0), radius=1.0, color=(3, 3, 3)))
@@ -288,16 +313,19 @@ def test_room_lights_hit_what_they_aim_at():
     assert np.linalg.norm(recs[0]["position"] - eye) < recs[0]["radius"]   # camera inside
     for px, py in [(64, 32), (32, 64), (96, 32)]:
         assert first_hit(eye, pixel_ray(CAMERA, 160, 120, px, py)) is not None
+    for w, h in [(160, 120), (100, 72)]:
+        assert len(rim_lights(CAMERA, w, h)) == 4, "every rim light lands on the back wall"
 
 
 # -- tiled == brute force -----------------------------------------------------------------------
 
-@pytest.mark.parametrize("tile", [8, 16, 32])
+@pytest.mark.parametrize("tile", [8, 16, 32, "16+depth-mask"])
 @pytest.mark.parametrize("count,width,height", CASES, ids=[f"{c}lights" for c, _, _ in CASES])
 def test_tiled_equals_brute_force(make_renderer, device, count, width, height, tile):
     scene = lit_scene(count, width, height)
     brute = render(make_renderer, device, ("room", count), scene, CAMERA, width, height, **BRUTE)
-    got = render(make_renderer, device, ("room", count), scene, CAMERA, width, height, **tiled(tile))
+    opts = tiled(16) | {"light_depth_mask": True} if tile == "16+depth-mask" else tiled(tile)
+    got = render(make_renderer, device, ("room", count), scene, CAMERA, width, height, **opts)
     assert got.color.shape == (height, width, 3) and got.color.dtype == np.float32
     fg = brute.triangle_id >= 0
     assert fg.mean() > 0.8

@@ -17,7 +17,8 @@ class LightCullPass(RenderPass):
         super().__init__(device, config)
         self.tile = config.light_tile_size
         self.vec = capabilities.pixel_vector_width(device.cl_device)
-        defines = {**layout.kernel_defines(), "LTILE": self.tile, "VEC": self.vec}
+        defines = {**layout.kernel_defines(), "LTILE": self.tile, "VEC": self.vec,
+                   "DEPTH_MASK": int(config.light_depth_mask)}
         kernel = lambda name: device.kernel("light_cull.cl", name, defines)   # noqa: E731
         self.bounds_kernel = kernel("light_view_bounds")
         self.depth_kernel = kernel("tile_depth_bounds")
@@ -31,7 +32,7 @@ class LightCullPass(RenderPass):
     def allocate(self, width, height):
         self.tiles_x, self.tiles_y = -(-width // self.tile), -(-height // self.tile)
         n = self.tiles_x * self.tiles_y
-        self.tile_depth = empty(self.queue, 2 * n, np.float32)
+        self.tile_depth = empty(self.queue, 4 * n, np.float32)
         self.counts = zeros(self.queue, n, np.int32)
         self.offsets = zeros(self.queue, n, np.int32)
         if self.list_capacity < 16 * n:
