@@ -58,6 +58,8 @@ def pixel_vector_width(dev: cl.Device) -> int:
     forced = os.environ.get("CLRENDER_VEC")
     if forced:
         width = int(forced)
+    elif is_simulator(dev):
+        width = 1          # Oclgrind reports every device type; it runs the GPU path (a pixel per work-item)
     elif is_cpu(dev):
         width = 16 if int(dev.preferred_vector_width_float) >= 16 else 8
     else:

@@ -27,11 +27,8 @@ static inline floatV dot3V(vec3V a, vec3V b) { return a.x * b.x + a.y * b.y + a.
 /* Gathers a float3 attribute of vertex idx[l] for every lane. */
 static inline vec3V gather3(global const float* a, intV idx)
 {
-    vec3V r;
-    for (int l = 0; l < VEC; ++l) {
-        int i = LANE_I(idx, l);
-        LANE_F(r.x, l) = a[3 * i]; LANE_F(r.y, l) = a[3 * i + 1]; LANE_F(r.z, l) = a[3 * i + 2];
-    }
+    intV i3 = idx * 3;
+    vec3V r = { GATHER_F(a, i3), GATHER_F(a, i3 + 1), GATHER_F(a, i3 + 2) };
     return r;
 }
 
@@ -93,10 +90,9 @@ static rgbaV bilinearV(global const uint* texels, constant float* lut, intV acti
 /* Per-lane mip level record `level` of texture `tex`. */
 static inline void gather_level(global const TexLevel* levels, intV level, intV* offset, intV* w, intV* h)
 {
-    for (int l = 0; l < VEC; ++l) {
-        TexLevel lv = levels[LANE_I(level, l)];
-        LANE_I(*offset, l) = lv.offset; LANE_I(*w, l) = lv.width; LANE_I(*h, l) = lv.height;
-    }
+    *offset = GATHER_M(intV, levels, level, offset);
+    *w = GATHER_M(intV, levels, level, width);
+    *h = GATHER_M(intV, levels, level, height);
 }
 
 static inline floatV fast_log2V(floatV x)   /* exponent + linear mantissa, as texture units do */
@@ -119,30 +115,39 @@ kernel void gbuffer_resolve(global const float* vis_depth, global const int* vis
     const int pix0 = get_global_id(0) * VEC;
     if (pix0 >= npix) return;
 
-    /* Gather the winning prims. Background lanes get a harmless dummy (prim fields 0). */
-    intV px, py, tri = 0, flags = 0, mat = 0, fg;
-    longV X0 = 0, X1 = 0, X2 = 0, Y0 = 0, Y1 = 0, Y2 = 0;
-    floatV iw0 = 0, iw1 = 0, iw2 = 0, b10 = 0, b11 = 0, b12 = 0, b20 = 0, b21 = 0, b22 = 0, depth;
+    /* Gather the winning prims (vector gathers over the Prim array seen as 32-bit words;
+     * background lanes read prim 0 and are masked out). */
+    intV px, py;
     int cx = pix0 % width, cy = pix0 / width;
     for (int l = 0; l < VEC; ++l) {
-        int pix = pix0 + l;
-        int pi = pix < npix ? vis_prim[pix] : -1;
         LANE_I(px, l) = cx; LANE_I(py, l) = cy;
         if (++cx == width) { cx = 0; ++cy; }
-        LANE_I(fg, l) = pi >= 0 ? -1 : 0;
-        LANE_F(depth, l) = pix < npix ? vis_depth[pix] : INFINITY;
-        if (pi < 0) continue;
-        global const Prim* p = prims + pi;
-        LANE_L(X0, l) = p->x[0]; LANE_L(X1, l) = p->x[1]; LANE_L(X2, l) = p->x[2];
-        LANE_L(Y0, l) = p->y[0]; LANE_L(Y1, l) = p->y[1]; LANE_L(Y2, l) = p->y[2];
-        LANE_F(iw0, l) = p->inv_w[0]; LANE_F(iw1, l) = p->inv_w[1]; LANE_F(iw2, l) = p->inv_w[2];
-        LANE_F(b10, l) = p->bary1[0]; LANE_F(b11, l) = p->bary1[1]; LANE_F(b12, l) = p->bary1[2];
-        LANE_F(b20, l) = p->bary2[0]; LANE_F(b21, l) = p->bary2[1]; LANE_F(b22, l) = p->bary2[2];
-        LANE_I(tri, l) = p->tri; LANE_I(flags, l) = (int)p->flags; LANE_I(mat, l) = p->material;
     }
+    const int valid = min(VEC, npix - pix0);
+    intV pidx;
+    floatV depth;
+    if (valid == VEC) {
+        pidx = vloadV(0, vis_prim + pix0);
+        depth = vloadV(0, vis_depth + pix0);
+    } else {
+        pidx = -1; depth = INFINITY;
+        for (int l = 0; l < valid; ++l) { LANE_I(pidx, l) = vis_prim[pix0 + l]; LANE_F(depth, l) = vis_depth[pix0 + l]; }
+    }
+    intV fg = pidx >= 0;
 #if VEC == 1
     fg = fg ? 1 : 0;
 #endif
+    intV w = select((intV)0, pidx, fg);
+#define PRIM_I(m) GATHER_M(intV, prims, w, m)
+#define PRIM_F(m) GATHER_M(floatV, prims, w, m)
+    longV X0 = convert_longV(PRIM_I(x[0])), X1 = convert_longV(PRIM_I(x[1])), X2 = convert_longV(PRIM_I(x[2]));
+    longV Y0 = convert_longV(PRIM_I(y[0])), Y1 = convert_longV(PRIM_I(y[1])), Y2 = convert_longV(PRIM_I(y[2]));
+    intV tri = PRIM_I(tri), flags = as_intV(GATHER_M(uintV, prims, w, flags)), mat = PRIM_I(material);
+    floatV iw0 = PRIM_F(inv_w[0]), iw1 = PRIM_F(inv_w[1]), iw2 = PRIM_F(inv_w[2]);
+    floatV b10 = PRIM_F(bary1[0]), b11 = PRIM_F(bary1[1]), b12 = PRIM_F(bary1[2]);
+    floatV b20 = PRIM_F(bary2[0]), b21 = PRIM_F(bary2[1]), b22 = PRIM_F(bary2[2]);
+#undef PRIM_I
+#undef PRIM_F
 
     uintV planes[GB_PLANES];            /* background unless a lane has a prim */
     for (int i = 0; i < GB_PLANES; ++i) planes[i] = 0;
@@ -170,11 +175,8 @@ kernel void gbuffer_resolve(global const float* vis_depth, global const int* vis
         floatV c0 = 1.0f - c1 - c2;
         c0 = select((floatV)0.0f, c0, fg); c1 = select((floatV)0.0f, c1, fg); c2 = select((floatV)0.0f, c2, fg);
 
-        intV i0, i1, i2;
-        for (int l = 0; l < VEC; ++l) {
-            int t = LANE_I(tri, l);
-            LANE_I(i0, l) = triangles[3 * t]; LANE_I(i1, l) = triangles[3 * t + 1]; LANE_I(i2, l) = triangles[3 * t + 2];
-        }
+        intV t3 = tri * 3;
+        intV i0 = GATHER_I(triangles, t3), i1 = GATHER_I(triangles, t3 + 1), i2 = GATHER_I(triangles, t3 + 2);
 
         /* Normal: interpolated vertex normal, geometric where that degenerates. */
         vec3V n = interp3(gather3(normals, i0), gather3(normals, i1), gather3(normals, i2), c0, c1, c2);
@@ -193,14 +195,12 @@ kernel void gbuffer_resolve(global const float* vis_depth, global const int* vis
         n.x *= inv_len; n.y *= inv_len; n.z *= inv_len;
 
         /* Material terms, per lane. */
-        floatV cr, cg, cb, spec_i, spec_p;
-        intV tex;
-        for (int l = 0; l < VEC; ++l) {
-            Material m = materials[LANE_I(mat, l)];
-            LANE_F(cr, l) = m.base_color[0]; LANE_F(cg, l) = m.base_color[1]; LANE_F(cb, l) = m.base_color[2];
-            LANE_F(spec_i, l) = m.spec_intensity; LANE_F(spec_p, l) = m.spec_power;
-            LANE_I(tex, l) = LANE_I(fg, l) ? m.texture : -1;
-        }
+        floatV cr = GATHER_M(floatV, materials, mat, base_color[0]);
+        floatV cg = GATHER_M(floatV, materials, mat, base_color[1]);
+        floatV cb = GATHER_M(floatV, materials, mat, base_color[2]);
+        intV tex = select((intV)-1, GATHER_M(intV, materials, mat, texture), fg);
+        floatV spec_i = GATHER_M(floatV, materials, mat, spec_intensity);
+        floatV spec_p = GATHER_M(floatV, materials, mat, spec_power);
 
         intV textured = tex >= 0;
 #if VEC == 1
@@ -208,24 +208,18 @@ kernel void gbuffer_resolve(global const float* vis_depth, global const int* vis
 #endif
         if (ANY(textured)) {
             /* UVs at the pixel and its neighbours -> GL's LOD, then trilinear. */
-            floatV u0, v0, u1, v1, u2, v2;
-            for (int l = 0; l < VEC; ++l) {
-                LANE_F(u0, l) = uvs[2 * LANE_I(i0, l)]; LANE_F(v0, l) = uvs[2 * LANE_I(i0, l) + 1];
-                LANE_F(u1, l) = uvs[2 * LANE_I(i1, l)]; LANE_F(v1, l) = uvs[2 * LANE_I(i1, l) + 1];
-                LANE_F(u2, l) = uvs[2 * LANE_I(i2, l)]; LANE_F(v2, l) = uvs[2 * LANE_I(i2, l) + 1];
-            }
+            floatV u0 = GATHER_F(uvs, 2 * i0), v0 = GATHER_F(uvs, 2 * i0 + 1);
+            floatV u1 = GATHER_F(uvs, 2 * i1), v1 = GATHER_F(uvs, 2 * i1 + 1);
+            floatV u2 = GATHER_F(uvs, 2 * i2), v2 = GATHER_F(uvs, 2 * i2 + 1);
             floatV u = c0 * u0 + c1 * u1 + c2 * u2, v = c0 * v0 + c1 * v1 + c2 * v2;
             floatV dux = (c1x - c1) * (u1 - u0) + (c2x - c2) * (u2 - u0);
             floatV dvx = (c1x - c1) * (v1 - v0) + (c2x - c2) * (v2 - v0);
             floatV duy = (c1y - c1) * (u1 - u0) + (c2y - c2) * (u2 - u0);
             floatV dvy = (c1y - c1) * (v1 - v0) + (c2y - c2) * (v2 - v0);
 
-            intV first, nlev, wrap_s, wrap_t;
-            for (int l = 0; l < VEC; ++l) {
-                TexInfo ti = tex_infos[max(LANE_I(tex, l), 0)];
-                LANE_I(first, l) = ti.first_level; LANE_I(nlev, l) = ti.levels;
-                LANE_I(wrap_s, l) = ti.wrap_s; LANE_I(wrap_t, l) = ti.wrap_t;
-            }
+            intV ti = max(tex, 0);
+            intV first = GATHER_M(intV, tex_infos, ti, first_level), nlev = GATHER_M(intV, tex_infos, ti, levels);
+            intV wrap_s = GATHER_M(intV, tex_infos, ti, wrap_s), wrap_t = GATHER_M(intV, tex_infos, ti, wrap_t);
             intV off0, w0, h0;
             gather_level(tex_levels, first, &off0, &w0, &h0);
             floatV fw = convert_floatV(w0), fh = convert_floatV(h0);

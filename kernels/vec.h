@@ -79,6 +79,20 @@ typedef CAT(float, VEC) floatV;
                                (p)[(i).s8], (p)[(i).s9], (p)[(i).sa], (p)[(i).sb], \
                                (p)[(i).sc], (p)[(i).sd], (p)[(i).se], (p)[(i).sf]))
 #endif
+/* GATHER_M(T, p, i, m): a vector of the member m of structs p[i] (e.g. x[0] of a Prim). */
+#if VEC == 1
+#define GATHER_M(T, p, i, m) ((T)(p)[i].m)
+#elif VEC == 4
+#define GATHER_M(T, p, i, m) ((T)((p)[(i).s0].m, (p)[(i).s1].m, (p)[(i).s2].m, (p)[(i).s3].m))
+#elif VEC == 8
+#define GATHER_M(T, p, i, m) ((T)((p)[(i).s0].m, (p)[(i).s1].m, (p)[(i).s2].m, (p)[(i).s3].m, \
+                                  (p)[(i).s4].m, (p)[(i).s5].m, (p)[(i).s6].m, (p)[(i).s7].m))
+#else
+#define GATHER_M(T, p, i, m) ((T)((p)[(i).s0].m, (p)[(i).s1].m, (p)[(i).s2].m, (p)[(i).s3].m, \
+                                  (p)[(i).s4].m, (p)[(i).s5].m, (p)[(i).s6].m, (p)[(i).s7].m, \
+                                  (p)[(i).s8].m, (p)[(i).s9].m, (p)[(i).sa].m, (p)[(i).sb].m, \
+                                  (p)[(i).sc].m, (p)[(i).sd].m, (p)[(i).se].m, (p)[(i).sf].m))
+#endif
 #define GATHER_F(p, i) GATHER_T(floatV, p, i)
 #define GATHER_I(p, i) GATHER_T(intV, p, i)
 #define GATHER_U(p, i) GATHER_T(uintV, p, i)
