@@ -75,14 +75,11 @@ static inline uintV pack_float2V(floatV a, floatV b, int bits)
  * it; exact rounding of the sRGB curve without pow(). */
 static inline uintV pack_srgb8V(floatV x, constant float2* srgb_encode)
 {
-    uintV code;
-    for (int l = 0; l < VEC; ++l) {
-        float v = fmin(fmax(LANE_F(x, l), 0.0f), 1.0f);   /* fmax ignores NaN: NaN -> 0 */
-        int k = min((int)(v * (float)SRGB_ENCODE_INTERVALS), SRGB_ENCODE_INTERVALS - 1);
-        float2 e = srgb_encode[k];
-        LANE_I(code, l) = (int)e.y + (v >= e.x ? 1 : 0);
-    }
-    return code;
+    floatV v = fmin(fmax(x, 0.0f), 1.0f);           /* fmax ignores NaN: NaN -> 0 */
+    intV k = min(convert_intV(v * (float)SRGB_ENCODE_INTERVALS), SRGB_ENCODE_INTERVALS - 1);
+    floatV threshold = GATHER_M(floatV, srgb_encode, k, x);
+    uintV base = convert_uintV(GATHER_M(floatV, srgb_encode, k, y));
+    return base + select((uintV)0u, (uintV)1u, as_uintV(v >= threshold));
 }
 
 static inline uintV pack_srgb8x3V(floatV r, floatV g, floatV b, constant float2* srgb_encode)

@@ -60,13 +60,10 @@ void shade(global const uint* gbuffer, int width, int height, float far, global 
     floatV lin = as_floatV(load_plane(gbuffer + GB_LINEAR_DEPTH_PLANE * npix, p0, valid, 0u));
     floatV depth = select((floatV)0.0f, lin * far, fg);
 
-    floatV ar, ag, ab;
-    for (int l = 0; l < VEC; ++l) {
-        uint w = (uint)LANE_I(w_alb, l) >> GB_ALBEDO_SHIFT;
-        LANE_F(ar, l) = srgb_lut[w & 255u];
-        LANE_F(ag, l) = srgb_lut[(w >> 8) & 255u];
-        LANE_F(ab, l) = srgb_lut[(w >> 16) & 255u];
-    }
+    uintV alb = w_alb >> GB_ALBEDO_SHIFT;
+    floatV ar = GATHER_F(srgb_lut, as_intV(alb & 255u));
+    floatV ag = GATHER_F(srgb_lut, as_intV((alb >> 8) & 255u));
+    floatV ab = GATHER_F(srgb_lut, as_intV((alb >> 16) & 255u));
     floatV spec_i = convert_floatV((w_alb >> GB_SPECULAR_INTENSITY_SHIFT) & 255u) * (1.0f / 255.0f);
     floatV spec_p = exp2(convert_floatV((w_nrm >> GB_SPECULAR_POWER_SHIFT) & 255u) * (SPEC_POWER_LOG2_MAX / 255.0f));
     uintV oct = w_nrm >> GB_NORMAL_SHIFT;
