@@ -135,7 +135,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="OpenCL device: a name substring or P:D (default: $CLRENDER_DEVICE, else a GPU, "
                         "else PoCL); see `clrender devices`")
     r.add_argument("--tile-size", type=int, metavar="N", help="raster tile size in pixels: 8, 16 or 32 (default 8)")
-    r.add_argument("--light-tile-size", type=int, metavar="N", help="light-culling tile size: 8, 16 or 32 (default 16)")
+    r.add_argument("--light-tile-size", type=int, metavar="N", help="light-culling tile size: 8, 16 or 32 (default 32)")
     r.add_argument("--light-culling", choices=("tiled", "brute_force"), help="light culling (default tiled)")
     r.add_argument("--tonemap", choices=("reinhard", "aces", "clamp"), help="tone-mapping operator (default reinhard)")
     r.add_argument("--exposure", type=float, metavar="X", help="exposure multiplier before tone mapping (default 1)")
