@@ -19,6 +19,7 @@ import pytest
 import clrender
 from clrender import Camera, Material, Scene, structs
 from reference import shading as ref
+from reference.geometry import uv_sphere
 
 AMBIENT = 0.05
 
@@ -29,19 +30,6 @@ SPHERE_C, SPHERE_R = np.array([0.4, 1.0, -3.5]), 1.0
 
 
 # -- scene construction -------------------------------------------------------------------------
-
-def uv_sphere(n_lat=24, n_lon=48, radius=1.0, center=(0, 0, -4)):
-    """As in test_gbuffer_attributes: counter-clockwise seen from outside (normals outward)."""
-    lat = np.linspace(0, np.pi, n_lat + 1)
-    lon = np.linspace(0, 2 * np.pi, n_lon + 1)
-    la, lo = np.meshgrid(lat, lon, indexing="ij")
-    normals = np.stack([np.sin(la) * np.cos(lo), np.cos(la), np.sin(la) * np.sin(lo)], -1).reshape(-1, 3)
-    positions = normals * radius + np.asarray(center)
-    idx = np.arange((n_lat + 1) * (n_lon + 1)).reshape(n_lat + 1, n_lon + 1)
-    a, b, c, d = idx[:-1, :-1], idx[:-1, 1:], idx[1:, :-1], idx[1:, 1:]
-    faces = np.concatenate([np.stack([a, b, c], -1).reshape(-1, 3), np.stack([b, d, c], -1).reshape(-1, 3)])
-    return positions.astype(np.float32), faces, normals.astype(np.float32)
-
 
 def grid_quad(corner, edge_u, edge_v, n=4):
     """An n×n grid of quads from `corner` along two edges; front face (CCW) toward edge_u × edge_v."""
