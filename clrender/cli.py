@@ -4,6 +4,7 @@
                     --aov depth,normal,... --camera-eye x,y,z --camera-target x,y,z --fov DEG --quiet]
     clrender devices [--json]
     clrender info SCENE [--json]
+    clrender check [--device NAME|all] [--scene S] [--json report.json]
 
 Errors are one line on stderr (`clrender: error: ...`) and a non-zero exit status; set
 CLRENDER_DEBUG=1 to get the traceback instead.
@@ -154,6 +155,16 @@ def build_parser() -> argparse.ArgumentParser:
                                    "default one, and try building clrender's kernels on each.")
     d.add_argument("--json", action="store_true", help="print JSON instead of a table")
     d.set_defaults(func=cmd_devices)
+
+    c = sub.add_parser("check", help="render fixed cases on several devices and compare every AOV")
+    c.add_argument("--device", default="all", metavar="NAME|all",
+                   help="devices to compare (default all, simulators such as Oclgrind included)")
+    c.add_argument("--scene", action="append", default=[], metavar="S", help="check this scene instead of the fixed cases")
+    c.add_argument("--width", type=_positive_int, default=96, metavar="W")
+    c.add_argument("--height", type=_positive_int, default=64, metavar="H")
+    c.add_argument("--json", metavar="REPORT", help="also write the report as JSON")
+    c.add_argument("-q", "--quiet", action="store_true", help="no progress on stderr")
+    c.set_defaults(func=cmd_check)
 
     i = sub.add_parser("info", help="describe a scene file",
                        description="Triangles, vertices, meshes, materials, textures, bounds and camera "
@@ -435,6 +446,21 @@ def cmd_devices(args) -> int:
     if default_id is not None:
         print("* default device (override with --device NAME or $CLRENDER_DEVICE)")
     return 0
+
+
+def cmd_check(args) -> int:
+    from .check import run_check
+    for s in args.scene:
+        if not Path(s).is_file():
+            raise CLIError(f"{s}: file not found")
+    report = run_check(args.device, args.scene, args.width, args.height,
+                       progress=None if args.quiet else (lambda m: print(f"rendering {m}", file=sys.stderr)))
+    print(report.table())
+    if len(report.devices) < 2:
+        _note(args, f"{PROG}: note: only one device ({report.devices[0]}): nothing to compare")
+    if args.json:
+        Path(args.json).write_text(json.dumps(report.to_dict(), indent=2))
+    return 0 if report.ok else 1
 
 
 def cmd_info(args) -> int:

@@ -1,0 +1,165 @@
+"""Device-portability check: render fixed small cases on several OpenCL devices and compare
+every AOV against the first device.
+
+Integer AOVs (triangle ids, lights per tile) must be identical; float AOVs must stay within
+the tolerances below, which come from what can legitimately differ between conforming
+implementations (library-function ulps in shading, last-bit differences after quantization).
+
+    report = clrender.check.run_check(devices="all")
+    report.ok, report.rows, report.table()
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Optional, Sequence
+
+import numpy as np
+
+from .camera import Camera
+from .scene import Scene
+
+# AOV -> (kind, tolerance). "exact": bit-identical; "abs": |a-b| <= tol; "peak": |a-b| <= tol·max|a|.
+TOLERANCES = {
+    "triangle_id": ("exact", 0.0),
+    "light_count": ("exact", 0.0),
+    "depth": ("rel", 1e-6),           # same fixed-point raster: only depth/far·far rounding
+    "normal": ("abs", 2e-3),          # 12-bit octahedral: a last-bit difference is ~1e-3
+    "albedo": ("abs", 1e-2),          # 8-bit sRGB: one code near white
+    "velocity": ("abs", 1e-3),
+    "color": ("peak", 1e-4),          # shading: rsqrt/powr ulps across implementations
+    "image": ("abs", 1.0),            # one 8-bit code after tone mapping
+}
+
+REPO_SCENES = Path(__file__).resolve().parents[1] / "scenes"
+
+
+@dataclass(frozen=True)
+class CheckRow:
+    device: str
+    case: str
+    aov: str
+    max_abs: float
+    max_rel: float
+    over: int          # pixels (elements) outside the tolerance
+    tolerance: str
+    ok: bool
+
+
+@dataclass(frozen=True)
+class CheckReport:
+    reference: str
+    devices: tuple
+    rows: tuple = field(default_factory=tuple)
+
+    @property
+    def ok(self) -> bool:
+        return all(r.ok for r in self.rows)
+
+    def table(self) -> str:
+        head = f"{'device':<44} {'case':<8} {'aov':<12} {'max abs':>10} {'max rel':>10} {'over':>6}  tolerance     result"
+        lines = [f"reference device: {self.reference}", head, "-" * len(head)]
+        for r in self.rows:
+            lines.append(f"{r.device[:44]:<44} {r.case:<8} {r.aov:<12} {r.max_abs:>10.3g} {r.max_rel:>10.3g} "
+                         f"{r.over:>6}  {r.tolerance:<13} {'ok' if r.ok else 'MISMATCH'}")
+        lines.append("all AOVs agree" if self.ok else "MISMATCH: see the rows above")
+        return "\n".join(lines)
+
+    def to_dict(self) -> dict:
+        return {"reference": self.reference, "devices": list(self.devices), "ok": self.ok,
+                "rows": [r.__dict__ for r in self.rows]}
+
+
+def compare(aov: str, ref: np.ndarray, got: np.ndarray) -> tuple[float, float, int, str, bool]:
+    """(max abs, max rel, elements over tolerance, tolerance text, ok) for one AOV."""
+    kind, tol = TOLERANCES[aov]
+    if ref.shape != got.shape:
+        return float("inf"), float("inf"), int(ref.size), f"shape {ref.shape}", False
+    a, b = ref.astype(np.float64), got.astype(np.float64)
+    both_inf = np.isinf(a) & np.isinf(b) & (np.sign(a) == np.sign(b))
+    with np.errstate(invalid="ignore"):          # inf - inf where both are background
+        diff = np.where(both_inf, 0.0, np.abs(a - b))
+    diff = np.where(np.isnan(diff), np.inf, diff)
+    scale = np.where(np.isfinite(a), np.maximum(np.abs(a), 1e-30), 1.0)   # inf vs finite: always over
+    max_abs = float(diff.max()) if diff.size else 0.0
+    max_rel = float((diff / scale).max()) if diff.size else 0.0
+    if kind == "exact":
+        over, text = int(np.count_nonzero(a != b)), "identical"
+    elif kind == "rel":
+        over, text = int(np.count_nonzero(diff > tol * scale)), f"rel {tol:g}"
+    elif kind == "peak":
+        peak = float(np.abs(a[np.isfinite(a)]).max()) if np.isfinite(a).any() else 0.0
+        over, text = int(np.count_nonzero(diff > tol * peak)), f"{tol:g}·peak"
+    else:
+        over, text = int(np.count_nonzero(diff > tol)), f"abs {tol:g}"
+    return max_abs, max_rel, over, text, over == 0
+
+
+def default_cases(width: int, height: int) -> list[tuple[str, Scene, Camera]]:
+    """The fixed portability cases: the bundled demo, a random soup, a dense tile, many lights."""
+    from .loaders import load_scene
+    cases = []
+    demo = REPO_SCENES / "demo.toml"
+    if demo.is_file():
+        scene = load_scene(demo)
+        cases.append(("demo", scene, scene.camera))
+    rng = np.random.default_rng(1234)
+    n = 300
+    centers = rng.uniform([-2, -1.5, -8], [2, 1.5, -0.05], (n, 1, 3))
+    soup = Scene.from_arrays((centers + rng.normal(scale=0.6, size=(n, 3, 3))).reshape(-1, 3).astype(np.float32),
+                             np.arange(3 * n).reshape(-1, 3))
+    soup.add_random_lights(64, seed=5, radius=(0.5, 2.0))
+    cases.append(("soup", soup, Camera.look_at((0, 0, 0), (0, 0, -1), near=0.1, far=50)))
+    m = 3000                                 # every triangle over the same few pixels: one hot tile
+    tri = np.array([[-0.05, -0.05, 0], [0.05, -0.05, 0], [0, 0.05, 0]], np.float32)
+    depth = rng.uniform(-5, -2, m).astype(np.float32)
+    dense = Scene.from_arrays((tri[None] + np.stack([np.zeros(m), np.zeros(m), depth], 1)[:, None]).reshape(-1, 3)
+                              .astype(np.float32), np.arange(3 * m).reshape(-1, 3))
+    dense.add_point_light((0, 0, -1), (1, 1, 1), 3.0)
+    cases.append(("dense", dense, Camera.look_at((0, 0, 0), (0, 0, -1), near=0.1, far=50)))
+    lights = Scene.from_arrays(np.array([[-4, -1, 0], [4, -1, 0], [4, -1, -10], [-4, -1, -10]], np.float32),
+                               [[0, 1, 2], [0, 2, 3]])
+    lights.add_random_lights(2000, seed=9, radius=(0.2, 1.5), intensity=0.5)
+    lights.add_light_particles(200, seed=3, radius=(0.5, 1.0))
+    cases.append(("lights", lights, Camera.look_at((0, 1.5, 1), (0, -1, -5), near=0.1, far=50)))
+    return cases
+
+
+AOVS = ("triangle_id", "depth", "normal", "albedo", "velocity", "light_count", "color", "image")
+
+
+def run_check(devices: Optional[str] = "all", scenes: Sequence[str | Path] = (), width: int = 96,
+              height: int = 64, progress=None) -> CheckReport:
+    """Render the cases (or `scenes`) on every selected device; compare with the first device."""
+    from .device import DeviceError, list_devices, select_devices
+    from .loaders import load_scene
+    from .renderer import Renderer
+
+    # Unlike test runs, a portability check includes simulators such as Oclgrind in "all".
+    infos = list_devices() if devices in (None, "all") else select_devices(devices)
+    infos = sorted(infos, key=lambda d: d.is_simulator)   # a real device is the reference
+    if not infos:
+        raise DeviceError("no OpenCL device found")
+    if scenes:
+        cases = []
+        for s in scenes:
+            scene = load_scene(s)
+            cases.append((Path(s).stem, scene, scene.default_camera()))
+    else:
+        cases = default_cases(width, height)
+    frames = {}
+    for info in infos:
+        renderer = Renderer(width, height, device=info)
+        for name, scene, camera in cases:
+            if progress:
+                progress(f"{info.label}: {name}")
+            frames[info.label, name] = renderer.render(scene, camera, time=0.5)
+    reference = infos[0].label
+    rows = []
+    for info in infos[1:]:
+        for name, _, _ in cases:
+            ref, got = frames[reference, name], frames[info.label, name]
+            for aov in AOVS:
+                max_abs, max_rel, over, text, ok = compare(aov, getattr(ref, aov), getattr(got, aov))
+                rows.append(CheckRow(info.label, name, aov, max_abs, max_rel, over, text, ok))
+    return CheckReport(reference=reference, devices=tuple(i.label for i in infos), rows=tuple(rows))
