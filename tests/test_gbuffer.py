@@ -4,7 +4,6 @@ import re
 from pathlib import Path
 
 import numpy as np
-import pyopencl as cl
 import pyopencl.array as cla
 import pytest
 

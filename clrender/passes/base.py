@@ -9,7 +9,6 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-import pyopencl as cl
 import pyopencl.array as cla
 
 
@@ -99,7 +98,3 @@ def scan_for(device):
     if scan is None:
         scan = _SCANS[device.info.id] = make_scan(device.context)
     return scan
-
-
-def wait_list(events):
-    return [e for e in events if isinstance(e, cl.Event)]
