@@ -24,6 +24,7 @@ sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 from clrender.camera import Camera  # noqa: E402
 from clrender.loaders import load_scene  # noqa: E402
 from clrender.scene import Material, SceneError  # noqa: E402
+from helpers import assert_scene_error
 
 REPO = Path(__file__).resolve().parents[1]
 SCENES = REPO / "scenes"
@@ -675,12 +676,7 @@ def _edit_mesh_ref(doc):
 ])
 def test_bad_gltf_structure(tmp_path, edit, words):
     path = write_gltf(tmp_path / "bad.gltf", edit=edit)
-    with pytest.raises(SceneError) as info:
-        load_scene(path)
-    msg = str(info.value)
-    assert str(path) in msg
-    for w in words:
-        assert w in msg
+    assert_scene_error(path, words)
 
 
 def test_bad_gltf_index_out_of_range(tmp_path):
@@ -779,12 +775,7 @@ def test_toml_errors(tmp_path, text, words):
     (tmp_path / "bad.gltf").write_text("{")
     path = tmp_path / "s.toml"
     path.write_text(text)
-    with pytest.raises(SceneError) as info:
-        load_scene(path)
-    msg = str(info.value)
-    assert str(path) in msg
-    for w in words:
-        assert w in msg
+    assert_scene_error(path, words)
 
 
 def test_toml_camera_defaults_to_the_first_mesh_camera(tmp_path):

@@ -25,6 +25,7 @@ sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 from clrender import structs  # noqa: E402
 from clrender.loaders import load_scene  # noqa: E402
 from clrender.scene import Scene, SceneError  # noqa: E402
+from helpers import assert_scene_error
 
 REPO = Path(__file__).resolve().parents[1]
 SCENES = REPO / "scenes"
@@ -259,12 +260,7 @@ def test_gltf_outer_cone_of_90_degrees_is_clamped(tmp_path):
 ])
 def test_gltf_light_errors(tmp_path, lights, node_ext, words):
     path = write_gltf(tmp_path / "bad.gltf", [{"mesh": 0}, {"extensions": node_ext}], lights)
-    with pytest.raises(SceneError) as info:
-        load_scene(path)
-    msg = str(info.value)
-    assert str(path) in msg
-    for w in words:
-        assert w in msg
+    assert_scene_error(path, words)
 
 
 def test_gltf_light_on_a_zero_scale_spot_node_is_an_error(tmp_path):
@@ -501,12 +497,7 @@ def test_toml_light_errors(tmp_path, text, words):
     if words is None:
         load_scene(path)
         return
-    with pytest.raises(SceneError) as info:
-        load_scene(path)
-    msg = str(info.value)
-    assert str(path) in msg
-    for w in words:
-        assert w in msg
+    assert_scene_error(path, words)
 
 
 def test_toml_zero_scale_transform_of_a_spot_light_is_an_error(tmp_path):
