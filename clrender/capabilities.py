@@ -50,6 +50,21 @@ def tile_size_for(dev: cl.Device, requested: int) -> int:
     return requested
 
 
+SCAN_ITEMS = 8    # counts per work-item in kernels/scan.cl
+
+
+def scan_shape(dev: cl.Device, preferred: int = 128) -> tuple[int, int]:
+    """(work-group size, items per work-item) for kernels/scan.cl: the largest power of two
+    up to `preferred` that the device's work-group limits allow and whose staging arrays,
+    (wg·items + 2·wg) ints, fit in half of CL_DEVICE_LOCAL_MEM_SIZE."""
+    limit = min(preferred, max_work_group_size(dev), int(dev.max_work_item_sizes[0]))
+    local_budget = int(dev.local_mem_size) // 2
+    wg = 1
+    while wg * 2 <= limit and (wg * 2) * (SCAN_ITEMS + 2) * 4 <= local_budget:
+        wg *= 2
+    return wg, SCAN_ITEMS
+
+
 def pixel_vector_width(dev: cl.Device) -> int:
     """Pixels per work-item in per-pixel kernels (kernels/vec.h): 1 on GPUs (a pixel per
     lane); on CPUs an explicit vector as wide as the SIMD unit, since PoCL cannot vectorize
@@ -80,6 +95,10 @@ def build_options(dev: cl.Device) -> list[str]:
     # Bit-exact rasterization (docs/raster_contract.md) needs IEEE division.
     if correctly_rounded_divide_sqrt(dev):
         opts.append("-cl-fp32-correctly-rounded-divide-sqrt")
+    # Oclgrind 21.10's uninitialized-value checker stops at LLVM's `freeze` instruction, which
+    # the optimizer emits (div/rem pairs, speculation); unoptimized code checks the same source.
+    if is_simulator(dev):
+        opts.append("-cl-opt-disable")
     return opts
 
 

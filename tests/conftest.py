@@ -22,6 +22,62 @@ if _TESTS_DIR not in sys.path:
 ENV_TEST_DEVICE = "CLRENDER_TEST_DEVICE"
 
 
+# Oclgrind's checks for the simulator tier: out-of-bounds accesses are always reported; these add
+# data races, uses of uninitialized values and invalid OpenCL API calls. Read when the
+# simulator loads, so they are set before any OpenCL call.
+OCLGRIND_CHECKS = {"OCLGRIND_DATA_RACES": "1", "OCLGRIND_UNINITIALIZED": "1", "OCLGRIND_CHECK_API": "1"}
+
+
+def pytest_configure(config):
+    spec, _ = _device_spec(config)
+    if "oclgrind" in spec.lower():
+        for name, value in OCLGRIND_CHECKS.items():
+            os.environ.setdefault(name, value)
+        _retain_device_arrays()
+    _quiet_pyopencl_vendor_probe()
+
+
+_RETAINED: list = []
+
+
+def _retain_device_arrays():
+    """Oclgrind 21.10's uninitialized-value checker keeps stale state when a released buffer's
+    slot goes to a new buffer, and then reports reads of the new, fully written buffer as
+    uninitialized (reproduced with two renderers and two scenes, the first scene released).
+    The simulator tier's frames are tiny, so it keeps every device array alive instead."""
+    import pyopencl.array as cla
+    init = cla.Array.__init__
+    if getattr(init, "_clrender_retain", False):
+        return
+
+    def retaining_init(self, *args, **kwargs):
+        init(self, *args, **kwargs)
+        _RETAINED.append(self)
+
+    retaining_init._clrender_retain = True
+    cla.Array.__init__ = retaining_init
+
+
+def _quiet_pyopencl_vendor_probe():
+    """pyopencl asks every device for CL_DEVICE_COMPUTE_CAPABILITY_MAJOR_NV at each program
+    build and kernel-argument setup; off NVIDIA that query is invalid, and Oclgrind's API
+    checker reports it. Answer None (what pyopencl concludes from the failed query) without
+    asking, for platforms that are not NVIDIA's."""
+    try:
+        import pyopencl.characterize as characterize
+    except ImportError:
+        return
+    ask = characterize.nv_compute_capability
+    if getattr(ask, "_clrender_shim", False):
+        return
+
+    def nv_compute_capability(dev):
+        return ask(dev) if "nvidia" in dev.platform.name.lower() else None
+
+    nv_compute_capability._clrender_shim = True
+    characterize.nv_compute_capability = nv_compute_capability
+
+
 def pytest_addoption(parser):
     parser.addoption(
         "--device", action="store", default=None, metavar="NAME|all",

@@ -69,7 +69,11 @@ class RenderPass:
 
 
 def zeros(queue, n, dtype) -> cla.Array:
-    return cla.zeros(queue, max(int(n), 1), dtype)
+    # Filled by a kernel: Oclgrind does not mark clEnqueueFillBuffer (cla.zeros) output as
+    # initialized, and every later read would be reported as uninitialized.
+    a = cla.empty(queue, max(int(n), 1), dtype)
+    a.fill(0, queue=queue)
+    return a
 
 
 def empty(queue, n, dtype) -> cla.Array:
@@ -80,21 +84,7 @@ def round_up(n: int, multiple: int) -> int:
     return (int(n) + multiple - 1) // multiple * multiple
 
 
-def make_scan(context):
-    """Exclusive prefix sum that also writes the grand total (pyopencl's scan)."""
-    from pyopencl.scan import GenericScanKernel
-    return GenericScanKernel(
-        context, np.int32,
-        arguments="__global const int *counts, __global int *offsets, __global int *total",
-        input_expr="counts[i]", scan_expr="a+b", neutral="0",
-        output_statement="offsets[i] = prev_item; if (i + 1 == N) total[0] = item;")
-
-
-_SCANS: dict = {}
-
-
 def scan_for(device):
-    scan = _SCANS.get(device.info.id)
-    if scan is None:
-        scan = _SCANS[device.info.id] = make_scan(device.context)
-    return scan
+    """The device's exclusive prefix sum with grand total (clrender/scan.py)."""
+    from ..scan import prefix_sum_for
+    return prefix_sum_for(device)
