@@ -3,8 +3,8 @@
  * Algorithm: one work-item per prim. Its pixel-center bounding box gives a tile range; for
  * prims spanning several tiles in both directions each tile is also tested against the
  * three edge functions at the tile's corner samples (a tile wholly outside one edge is
- * skipped). `bin_count` counts prims per tile with atomics; the host's prefix sum (pyopencl
- * scan) turns counts into offsets; `bin_fill` repeats the walk and appends each prim index
+ * skipped). `bin_count` counts prims per tile with atomics; the prefix sum (scan.cl)
+ * turns counts into offsets; `bin_fill` repeats the walk and appends each prim index
  * to its tiles' lists. Order inside a list is not deterministic, and need not be: visibility
  * is a total order (depth, triangle id, prim index), so the image is.
  *

@@ -10,7 +10,7 @@
  *     pixel, so a light floating in the empty gap of a depth discontinuity is rejected.
  *  3. `light_cull_count` / `light_cull_fill`: one work-item per tile tests every light, VEC
  *     lights at a time, against the tile's four side planes (through the eye) and its depth
- *     range; count, prefix sum on the host (pyopencl scan), then fill in light-index order, so
+ *     range; count, prefix sum (scan.cl), then fill in light-index order, so
  *     lists (and the shading sums over them) are the same on every run. No cap: the list
  *     buffer grows when the total says it must.
  *
