@@ -1,8 +1,8 @@
 """clrender: a tiled deferred renderer whose every pixel is computed by OpenCL kernels."""
 from .camera import Camera
-from .scene import Material, Scene, SceneError, Texture
+from .scene import Material, Scene, SceneError, Sun, Texture
 
-__all__ = ["Camera", "Material", "Scene", "SceneError", "Texture", "load_scene",
+__all__ = ["Camera", "Material", "Scene", "SceneError", "Sun", "Texture", "load_scene",
            "Renderer", "RenderConfig", "Frame", "list_devices"]
 
 

@@ -122,7 +122,7 @@ def preview(name: str, data: np.ndarray, background: np.ndarray) -> np.ndarray:
         return out
     if name == "albedo":
         return linear_to_srgb8(data)
-    if name == "specular_intensity":
+    if name in ("specular_intensity", "ao"):    # [0, 1] as grey; ao: white = unoccluded
         return _u8(data)
     if name == "specular_power":
         return _u8(np.log2(np.maximum(data, 1.0)) / SPEC_POWER_LOG2_MAX)
@@ -134,6 +134,8 @@ def preview(name: str, data: np.ndarray, background: np.ndarray) -> np.ndarray:
         return linear_to_srgb8(data / (1.0 + np.maximum(data, 0.0)))
     if name == "light_count":
         return _preview_heat(data)
+    if name == "shadow":                   # (H, W, K): the darkest shadowed light per pixel, white = lit
+        return _u8(data.min(-1) if data.shape[-1] else np.ones(data.shape[:2], np.float32))
     raise ValueError(f"no preview for AOV {name!r}")
 
 
@@ -158,7 +160,7 @@ def write_aovs(frame, image: Path, aovs: Sequence[str]) -> None:
         data = np.asarray(frame.aov(aov))
         np.save(f"{stem}.{aov}.npy", data)
         iio.imwrite(f"{stem}.{aov}.png", preview(aov, data, background))
-        if aov not in INT_AOVS and exr_available():
+        if aov not in INT_AOVS and exr_available() and not (data.ndim == 3 and data.shape[2] not in (1, 2, 3, 4)):
             arr = data.astype(np.float32)
             if arr.ndim == 3 and arr.shape[2] == 2:       # velocity: pad to RGB
                 arr = np.concatenate([arr, np.zeros_like(arr[..., :1])], -1)

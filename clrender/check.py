@@ -29,6 +29,12 @@ TOLERANCES = {
     "velocity": ("abs", 1e-3),
     "color": ("peak", 1e-4),          # shading: rsqrt/powr ulps across implementations
     "image": ("abs", 1.0),            # one 8-bit code after tone mapping
+    # SSAO uses only +-*/ and sqrt: identical bits where they are correctly rounded (PoCL,
+    # Oclgrind); elsewhere a sample may land one pixel over: <= 1/8 raw, <= 1/200 once blurred.
+    "ao": ("abs", 1e-2),
+    # Shadow maps are the same fixed-point raster; a depth compare within an ulp of the bias can
+    # flip one filter tap (<= 1/9 of pcf3x3, 1/16 of poisson) where implementations round differently.
+    "shadow": ("abs", 0.12),
 }
 
 REPO_SCENES = Path(__file__).resolve().parents[1] / "scenes"
@@ -109,6 +115,8 @@ def default_cases(width: int, height: int) -> list[tuple[str, Scene, Camera]]:
     soup = Scene.from_arrays((centers + rng.normal(scale=0.6, size=(n, 3, 3))).reshape(-1, 3).astype(np.float32),
                              np.arange(3 * n).reshape(-1, 3))
     soup.add_random_lights(64, seed=5, radius=(0.5, 2.0))
+    soup.add_spot_light((0, 3, -2), (0, -1, -0.6), (4, 4, 4), 10, 20, 40, shadow=True, shadow_map_size=256)
+    soup.set_sun((0.3, -1, -0.4), (0.8, 0.8, 0.8), shadow_map_size=512)     # shadow maps: spot and sun
     cases.append(("soup", soup, Camera.look_at((0, 0, 0), (0, 0, -1), near=0.1, far=50)))
     m = 3000                                 # every triangle over the same few pixels: one hot tile
     tri = np.array([[-0.05, -0.05, 0], [0.05, -0.05, 0], [0, 0.05, 0]], np.float32)
@@ -125,7 +133,7 @@ def default_cases(width: int, height: int) -> list[tuple[str, Scene, Camera]]:
     return cases
 
 
-AOVS = ("triangle_id", "depth", "normal", "albedo", "velocity", "light_count", "color", "image")
+AOVS = ("triangle_id", "depth", "normal", "albedo", "velocity", "light_count", "ao", "shadow", "color", "image")
 
 
 def run_check(devices: Optional[str] = "all", scenes: Sequence[str | Path] = (), width: int = 96,
@@ -149,7 +157,7 @@ def run_check(devices: Optional[str] = "all", scenes: Sequence[str | Path] = (),
         cases = default_cases(width, height)
     frames = {}
     for info in infos:
-        renderer = Renderer(width, height, device=info)
+        renderer = Renderer(width, height, device=info, ssao=True)     # so that `ao` is computed
         for name, scene, camera in cases:
             if progress:
                 progress(f"{info.label}: {name}")

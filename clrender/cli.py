@@ -140,6 +140,9 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--light-culling", choices=("tiled", "brute_force"), help="light culling (default tiled)")
     r.add_argument("--tonemap", choices=("reinhard", "aces", "clamp"), help="tone-mapping operator (default reinhard)")
     r.add_argument("--exposure", type=float, metavar="X", help="exposure multiplier before tone mapping (default 1)")
+    r.add_argument("--ssao", action="store_true", default=None, help="screen-space ambient occlusion (default off)")
+    r.add_argument("--ssao-radius", type=float, metavar="R", help="with --ssao: its radius in world units (default 1)")
+    r.add_argument("--ssao-strength", type=float, metavar="S", help="with --ssao: ao = 1 - S·occlusion (default 1)")
     r.add_argument("--time", type=float, default=0.0, metavar="SECONDS",
                    help="animation time: places the scene's light particles (default 0)")
     r.add_argument("--aov", type=_aov_list, default=[], metavar="LIST",
@@ -294,7 +297,8 @@ def cmd_render(args) -> int:
             raise CLIError(f"{s}: not a file")
     options = {name: value for name, value in (
         ("tile_size", args.tile_size), ("light_tile_size", args.light_tile_size),
-        ("light_culling", args.light_culling), ("tonemap", args.tonemap), ("exposure", args.exposure))
+        ("light_culling", args.light_culling), ("tonemap", args.tonemap), ("exposure", args.exposure),
+        ("ssao", args.ssao), ("ssao_radius", args.ssao_radius), ("ssao_strength", args.ssao_strength))
         if value is not None}
     for name, value in options.items():          # name the offending flag
         try:
@@ -350,6 +354,8 @@ def _format_stats(stats: dict) -> str:
     if "total_ms" in stats:
         text += f"; total {stats['total_ms']:.2f}"
     extra = [f"{k} {stats[k]}" for k in ("prims", "tile_entries", "retries") if k in stats]
+    if "device_bytes" in stats:
+        extra.append(f"device {stats['device_bytes'] / 2**20:.1f} MiB")
     if extra:
         text += "; " + ", ".join(extra)
     return text

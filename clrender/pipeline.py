@@ -8,8 +8,9 @@ import pyopencl as cl
 import pyopencl.array as cla
 
 from . import gbuffer as layout
+from .passes.base import zeros
 from .passes import (BinningPass, GBufferPass, LightCullPass, ParticlesPass, RasterPass, Resources, SetupPass,
-                     ShadePass, TonemapPass)
+                     ShadePass, ShadowPass, SsaoBlurPass, SsaoPass, TonemapPass)
 
 MAX_RETRIES = 8
 
@@ -26,10 +27,18 @@ class Pipeline:
             self.passes.append(self.light_cull)
         else:
             self.light_cull = None
+        if config.ssao:                            # off: no SSAO kernel, shade uses ao = 1
+            self.passes.append(SsaoPass(device, config))
+            if config.ssao_blur:
+                self.passes.append(SsaoBlurPass(device, config))
+        # Shadow maps (setup/binning/raster again, per light view); off: shade.cl built without lookups.
+        self.shadow = ShadowPass(device, config) if config.shadows else None
+        if self.shadow is not None:
+            self.passes.append(self.shadow)
         self.passes += [ShadePass(device, config), TonemapPass(device, config)]
         self._check_wiring()
         self.size = None
-        self.matrices = {name: cla.zeros(self.queue, 16, np.float32)
+        self.matrices = {name: zeros(self.queue, 16, np.float32)
                          for name in ("view_proj", "prev_view_proj", "view_matrix", "camera_params")}
         self.constants = {"srgb_encode": cla.to_device(self.queue, layout.srgb_encode_table())}
 
@@ -38,7 +47,7 @@ class Pipeline:
                     "srgb_lut", "tex_infos", "tex_levels", "n_tris", "view_proj", "prev_view_proj",
                     "near", "far", "width", "height", "has_prev", "tiles_x", "tiles_y",
                     "lights", "n_lights", "ambient", "view_matrix", "camera_params", "tan_x", "tan_y",
-                    "srgb_encode", "particle_systems", "time"}
+                    "srgb_encode", "particle_systems", "time", "sun", "shadow_lights", "scene_bounds", "camera"}
         for p in self.passes:
             missing = set(p.inputs) - produced
             if missing:
@@ -72,7 +81,7 @@ class Pipeline:
         res = Resources(buffers=dict(scene_res.buffers), values=dict(scene_res.values))
         res.buffers.update(self.matrices)
         res.buffers.update(self.constants)
-        res.values.update(self._set_camera(camera, width, height, prev_camera), time=float(time))
+        res.values.update(self._set_camera(camera, width, height, prev_camera), time=float(time), camera=camera)
         for p in self.passes:
             p.prepare_scene(scene_res)
 
@@ -83,6 +92,8 @@ class Pipeline:
                 p.publish(res)
                 if p.name == "particles" and not res["particle_systems"]:
                     continue                        # no particles: no kernel
+                if p.name == "shadow" and not res["shadow_view_count"]:
+                    continue                        # no shadowed light, no shadowed sun: no kernel
                 start = cl.enqueue_marker(self.queue)
                 p.run(res)
                 timings.append((p.name, start, cl.enqueue_marker(self.queue)))
@@ -98,6 +109,10 @@ class Pipeline:
             "color": np.moveaxis(res["color"].get(queue=self.queue).reshape(3, height, width), 0, -1),
             "light_count": res["light_count"].get(queue=self.queue).reshape(height, width),
             "image": res["image"].get(queue=self.queue).reshape(height, width, 1).view(np.uint8)[..., :3],
+            "shadow": self._shadow_planes(res, width, height),
+            # Without SSAO no kernel runs: the term is 1 everywhere, made here.
+            "ao": (res["ao"].get(queue=self.queue).reshape(height, width) if self.config.ssao
+                   else np.ones((height, width), np.float32)),
         }
         stats = {f"{name}_ms": (end.profile.end - start.profile.start) * 1e-6 for name, start, end in timings}
         stats["total_ms"] = sum(stats.values())
@@ -106,6 +121,8 @@ class Pipeline:
         stats["tile_entries"] = int(self.passes[1].total.get(queue=self.queue)[0])
         stats["tile_size"] = self.config.tile_size
         stats["retries"] = retries
+        if self.shadow is not None and res["shadow_view_count"]:
+            stats.update(self.shadow.pass_stats())     # breakdown of shadow_ms, not added to total_ms
         stats["lights"] = res["n_lights"]
         if self.light_cull is not None:
             stats.update(self.light_cull.tile_stats())
@@ -113,13 +130,26 @@ class Pipeline:
             stats.update(lights_per_tile_avg=float(res["n_lights"]), lights_per_tile_max=res["n_lights"])
         return outputs, stats
 
+    def _shadow_planes(self, res, width, height) -> np.ndarray:
+        """Frame.shadow: (H, W, K) visibility, K = shadow planes (0 without shadows)."""
+        k = res["shadow_planes"]
+        if not k:
+            return np.ones((height, width, 0), np.float32)
+        planes = res["shadow"].get(queue=self.queue)[: k * height * width].reshape(k, height, width)
+        return np.ascontiguousarray(np.moveaxis(planes, 0, -1))
+
     def _grow_overflowing(self) -> list:
         grown = []
         for p in self.passes:
             for ov in p.overflows():
                 total = int(ov.total.get(queue=self.queue)[0])
                 if total > ov.capacity:
-                    p.grow(ov.name, total)
+                    try:
+                        p.grow(ov.name, total)
+                    except cl.Error as exc:
+                        from .memory import DeviceMemoryError
+                        raise DeviceMemoryError(f"growing {p.name} buffer {ov.name} to {total} entries failed on "
+                                                f"{self.device.name}: {exc}") from None
                     grown.append((ov.name, total, ov.capacity))
                     # Later passes consumed a truncated buffer: everything is redone.
                     return grown

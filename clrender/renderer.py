@@ -16,6 +16,11 @@ from .scene import Scene
 TILE_SIZES = (8, 16, 32)
 LIGHT_CULLING = ("tiled", "brute_force")
 TONEMAPS = ("reinhard", "aces", "clamp")
+SHADOW_FILTERS = ("pcf3x3", "poisson", "hard")
+
+
+def _is_real(x) -> bool:
+    return isinstance(x, (int, float, np.integer, np.floating)) and not isinstance(x, bool)
 
 
 @dataclass(frozen=True)
@@ -27,6 +32,19 @@ class RenderConfig:
     light_depth_mask: bool = False   # Harada's 2.5D culling: 32 depth slices per tile
     tonemap: str = "reinhard"
     exposure: float = 1.0
+    ssao: bool = False         # off by default: on CPUs it costs several shading passes (README, SSAO)
+    ssao_radius: float = 1.0   # world units: how far the ambient occlusion looks around each point
+    ssao_strength: float = 1.0  # ao = 1 - strength·occlusion, clamped to [0, 1]
+    ssao_blur: bool = True     # depth-aware blur of the per-pixel-rotated samples
+    shadows: bool = True       # shadow maps for shadowed spots and the sun; False: shade.cl has no lookup
+    shadow_filter: str = "pcf3x3"    # "pcf3x3" (smooth 3x3 box), "poisson" (16 rotated taps), "hard"
+    shadow_filter_radius: float = 2.0   # poisson disk radius, texels
+    shadow_bias: float = 1.0         # constant depth bias, texels of the map at the receiver
+    shadow_slope_bias: float = 1.0   # slope-scaled bias: × tan(angle to the light) × filter reach, texels
+    shadow_normal_offset: float = 1.0   # receivers move along their normal by this × sin(angle), texels
+    sun_cascades: int = 3            # cascaded shadow maps of the sun (1 = one map over the whole view)
+    sun_split_lambda: float = 0.75   # cascade splits: lambda·logarithmic + (1 - lambda)·uniform
+    shadow_atlas_max: int = 16384    # atlas side limit: maps that do not fit are an error, never dropped
 
     def __post_init__(self):
         if self.tile_size not in TILE_SIZES:
@@ -41,6 +59,33 @@ class RenderConfig:
             raise ValueError(f"tonemap must be one of {TONEMAPS}, got {self.tonemap!r}")
         if not (isinstance(self.exposure, (int, float)) and np.isfinite(self.exposure) and self.exposure > 0):
             raise ValueError(f"exposure must be a positive number, got {self.exposure!r}")
+        for name in ("ssao", "ssao_blur"):
+            if not isinstance(getattr(self, name), bool):
+                raise ValueError(f"{name} must be True or False, got {getattr(self, name)!r}")
+        if not (_is_real(self.ssao_radius) and np.isfinite(self.ssao_radius) and self.ssao_radius > 0):
+            raise ValueError(f"ssao_radius must be a positive number (world units), got {self.ssao_radius!r}")
+        if not (_is_real(self.ssao_strength) and np.isfinite(self.ssao_strength) and self.ssao_strength >= 0):
+            raise ValueError(f"ssao_strength must be a number >= 0, got {self.ssao_strength!r}")
+        self._check_shadow_options()
+
+    def _check_shadow_options(self):
+        if not isinstance(self.shadows, bool):
+            raise ValueError(f"shadows must be True or False, got {self.shadows!r}")
+        if self.shadow_filter not in SHADOW_FILTERS:
+            raise ValueError(f"shadow_filter must be one of {SHADOW_FILTERS}, got {self.shadow_filter!r}")
+        for name, lo in (("shadow_bias", 0.0), ("shadow_slope_bias", 0.0), ("shadow_normal_offset", 0.0),
+                         ("shadow_filter_radius", 0.5)):
+            v = getattr(self, name)
+            if not (_is_real(v) and np.isfinite(v) and v >= lo):
+                raise ValueError(f"{name} must be a number >= {lo} (texels), got {v!r}")
+        if not (isinstance(self.sun_cascades, (int, np.integer)) and not isinstance(self.sun_cascades, bool)
+                and 1 <= self.sun_cascades <= 4):
+            raise ValueError(f"sun_cascades must be an integer in [1, 4], got {self.sun_cascades!r}")
+        if not (_is_real(self.sun_split_lambda) and 0.0 <= self.sun_split_lambda <= 1.0):
+            raise ValueError(f"sun_split_lambda must be in [0, 1], got {self.sun_split_lambda!r}")
+        if not (isinstance(self.shadow_atlas_max, (int, np.integer)) and not isinstance(self.shadow_atlas_max, bool)
+                and 16 <= self.shadow_atlas_max <= 32768):
+            raise ValueError(f"shadow_atlas_max must be an integer in [16, 32768], got {self.shadow_atlas_max!r}")
 
     @classmethod
     def from_options(cls, **options) -> "RenderConfig":
@@ -60,10 +105,12 @@ class Frame:
     color: np.ndarray           # (H, W, 3) float32 linear HDR
     light_count: np.ndarray     # (H, W) int32 lights the culling assigned to the pixel's tile
     image: np.ndarray           # (H, W, 3) uint8 sRGB, tone-mapped color
+    ao: np.ndarray              # (H, W) float32 ambient occlusion in [0, 1], 1 = open; all ones without SSAO
+    shadow: np.ndarray          # (H, W, K) float32 visibility per shadowed light (sun first), K = 0 without
     stats: dict = field(default_factory=dict)
 
     AOV_NAMES = ("color", "light_count", "depth", "linear_depth", "normal", "albedo", "triangle_id", "velocity",
-                 "specular_intensity", "specular_power", "image")
+                 "specular_intensity", "specular_power", "ao", "shadow", "image")
 
     @property
     def height(self) -> int:
@@ -137,6 +184,8 @@ class Renderer:
         self.width, self.height = int(width), int(height)
         self.config = config or RenderConfig.from_options(**options)
         self.device = Device.get(device)
+        from . import memory
+        memory.check(self.device, self.width, self.height, self.config)   # before building or allocating
         from .pipeline import Pipeline
         self.pipeline = Pipeline(self.device, self.config)
 
@@ -155,19 +204,22 @@ class Renderer:
                previous_camera: Optional[Camera] = None, time: float = 0.0) -> Frame:
         """Render `scene` from `camera` (default: the scene's). `previous_camera` gives motion
         vectors; `time` (seconds) places the scene's light particles."""
-        from . import scene_gpu
+        from . import memory, scene_gpu
         from .passes import Resources
         if not isinstance(scene, Scene):
             raise TypeError(f"render() needs a clrender.Scene, got {type(scene).__name__}")
         camera = camera or scene.default_camera()
+        if scene_gpu.needs_upload(scene, self.device):
+            memory.check(self.device, self.width, self.height, self.config, scene)
         scene_res = scene_gpu.upload(scene, self.device)
         if not np.isfinite(time):
             raise ValueError(f"time must be finite, got {time!r}")
         scene_res = Resources(buffers=dict(scene_res.buffers), values={
             **scene_res.values, **scene_gpu.upload_lights(scene, self.device), "ambient": float(scene.ambient),
-            "particle_systems": tuple(scene.particle_systems)})
+            "particle_systems": tuple(scene.particle_systems), "sun": scene.sun})
         out, stats = self.pipeline.render(scene_res, camera, self.width, self.height, previous_camera, time)
         stats["device"] = self.device.name
+        stats.update(memory.held_bytes(self.pipeline, scene_res))
         stats["time"] = float(time)
         return Frame(gbuffer=out["gbuffer"], far=camera.far, color=out["color"], light_count=out["light_count"],
-                     image=np.ascontiguousarray(out["image"]), stats=stats)
+                     image=np.ascontiguousarray(out["image"]), ao=out["ao"], shadow=out["shadow"], stats=stats)

@@ -39,6 +39,42 @@ class SceneError(ValueError):
     """Bad scene input; the message names the file (when there is one) and the problem."""
 
 
+SHADOW_MAP_SIZES = (16, 8192)      # inclusive range of a shadow map's side in texels
+
+
+def check_shadow_map_size(size) -> int:
+    if not (isinstance(size, (int, np.integer)) and not isinstance(size, bool)
+            and SHADOW_MAP_SIZES[0] <= size <= SHADOW_MAP_SIZES[1]):
+        raise SceneError(f"shadow_map_size must be an integer in [{SHADOW_MAP_SIZES[0]}, {SHADOW_MAP_SIZES[1]}], "
+                         f"got {size!r}")
+    return int(size)
+
+
+@dataclass(frozen=True)
+class Sun:
+    """A directional light: `direction` is the way the light travels (unit), `color` its
+    linear RGB radiance (intensity included); it lights every pixel with N·L, no falloff."""
+    direction: tuple
+    color: tuple
+    shadow: bool = True
+    shadow_map_size: int = 2048
+
+    def __post_init__(self):
+        d = np.asarray(self.direction, np.float64).reshape(-1)
+        c = np.asarray(self.color, np.float64).reshape(-1)
+        norm = float(np.linalg.norm(d)) if d.shape == (3,) else 0.0
+        if not (np.isfinite(norm) and norm > 0):
+            raise SceneError(f"sun direction must be a non-zero finite 3-vector, got {self.direction!r}")
+        if c.shape != (3,) or not np.isfinite(c).all() or (c < 0).any():
+            raise SceneError(f"sun color must be 3 finite non-negative numbers, got {self.color!r}")
+        if not isinstance(self.shadow, (bool, np.bool_)):
+            raise SceneError(f"sun shadow must be True or False, got {self.shadow!r}")
+        object.__setattr__(self, "direction", tuple(float(v) for v in d / norm))
+        object.__setattr__(self, "color", tuple(float(v) for v in c))
+        object.__setattr__(self, "shadow", bool(self.shadow))
+        object.__setattr__(self, "shadow_map_size", check_shadow_map_size(self.shadow_map_size))
+
+
 @dataclass(frozen=True)
 class Material:
     """Blinn-Phong material as the G-buffer stores it (colors are linear)."""
@@ -103,6 +139,7 @@ class Scene:
     lights: np.ndarray = field(default_factory=lambda: np.zeros(0, structs.light_dtype))
     ambient: float = 0.03                       # ambient term: ambient · albedo
     particle_systems: list = field(default_factory=list)   # ParticleSystem: animated slices of `lights`
+    sun: Optional["Sun"] = None                 # the directional light (set_sun)
 
     def __post_init__(self):
         self.positions = np.ascontiguousarray(self.positions, dtype=np.float32).reshape(-1, 3)
@@ -155,14 +192,27 @@ class Scene:
         """A point light; returns its index in `lights`."""
         return self._add_light(structs.LIGHT_POINT, position, color, radius, (0.0, 0.0, -1.0), 0.0, 0.0)
 
-    def add_spot_light(self, position, direction, color, radius, inner_deg, outer_deg) -> int:
-        """A spot light lighting fully inside `inner_deg` of `direction`, fading to 0 at `outer_deg`."""
+    def add_spot_light(self, position, direction, color, radius, inner_deg, outer_deg,
+                       shadow: bool = False, shadow_map_size: int = 1024) -> int:
+        """A spot light lighting fully inside `inner_deg` of `direction`, fading to 0 at `outer_deg`.
+        shadow=True gives it a perspective shadow map of `shadow_map_size`² texels over its cone."""
         inner_deg, outer_deg = float(inner_deg), float(outer_deg)
         if not 0.0 <= inner_deg <= outer_deg < 90.0:
             raise SceneError(f"spot light cone angles need 0 <= inner <= outer < 90 degrees, "
                              f"got inner={inner_deg} outer={outer_deg}")
+        if not isinstance(shadow, (bool, np.bool_)):
+            raise SceneError(f"spot light shadow must be True or False, got {shadow!r}")
+        size = check_shadow_map_size(shadow_map_size) if shadow else 0
         return self._add_light(structs.LIGHT_SPOT, position, color, radius, direction,
-                               np.cos(np.radians(inner_deg)), np.cos(np.radians(outer_deg)))
+                               np.cos(np.radians(inner_deg)), np.cos(np.radians(outer_deg)), size)
+
+    def set_sun(self, direction, color, shadow: bool = True, shadow_map_size: int = 2048) -> "Sun":
+        """A directional light travelling along `direction` that lights every pixel (no radius,
+        no culling); shadow=True gives it orthographic cascaded shadow maps (RenderConfig
+        sun_cascades) of `shadow_map_size`² texels each. Replaces any previous sun; `scene.sun =
+        None` removes it."""
+        self.sun = Sun(direction, color, shadow, shadow_map_size)
+        return self.sun
 
     def add_random_lights(self, count: int, seed: int, radius=(0.5, 2.0), intensity: float = 1.0) -> np.ndarray:
         """`count` point lights uniform in the scene's bounds, reproducible for a seed; returns their indices."""
@@ -206,7 +256,7 @@ class Scene:
                                                     float(speed), lmin, lmax, rmin, rmax, float(intensity)))
         return np.arange(first, first + count)
 
-    def _add_light(self, kind, position, color, radius, direction, cos_inner, cos_outer) -> int:
+    def _add_light(self, kind, position, color, radius, direction, cos_inner, cos_outer, shadow_size=0) -> int:
         position = np.asarray(position, np.float64).reshape(-1)
         color = np.asarray(color, np.float64).reshape(-1)
         direction = np.asarray(direction, np.float64).reshape(-1)
@@ -221,7 +271,7 @@ class Scene:
         if not (np.isfinite(norm) and norm > 0):
             raise SceneError(f"light direction must be a non-zero 3-vector, got {direction.tolist()}")
         rec = np.zeros(1, structs.light_dtype)
-        rec[0] = (position, radius, color, kind, direction / norm, cos_outer, cos_inner, (0, 0, 0))
+        rec[0] = (position, radius, color, kind, direction / norm, cos_outer, cos_inner, shadow_size, -1, 0.0)
         self.lights = np.concatenate([self.lights, rec])
         return len(self.lights) - 1
 

@@ -1,8 +1,11 @@
 """Uploading a Scene to a device: geometry, material records and the mipmapped texture pool.
 
 Uploads are cached per (scene, device) and rebuilt when the scene's arrays change identity
-or shape. Mip chains are built once per texture object (box filter in linear space, as
-GL's glGenerateMipmap does for sRGB textures).
+or shape (an upload replaces its predecessor; both are dropped when the scene is collected).
+The scene and its lights are validated whenever they are (re)uploaded, so arrays edited after
+construction cannot reach a kernel with an out-of-range index or a NaN light. Mip chains are
+built once per texture object (box filter in linear space, as GL's glGenerateMipmap does for
+sRGB textures).
 """
 from __future__ import annotations
 
@@ -15,7 +18,7 @@ from PIL import Image
 from . import structs
 from .gbuffer import linear_to_srgb8, srgb_to_linear_lut
 from .passes.base import Resources
-from .scene import Scene, Texture
+from .scene import Scene, SceneError, Texture
 
 _MIP_CACHE: "weakref.WeakKeyDictionary[Texture, list[np.ndarray]]" = weakref.WeakKeyDictionary()
 
@@ -79,6 +82,50 @@ def _fingerprint(scene: Scene) -> tuple:
 
 _UPLOADS: dict = {}
 _LIGHTS: dict = {}
+_WATCHED: set = set()
+
+
+def _forget(key) -> None:
+    _UPLOADS.pop(key, None)
+    _LIGHTS.pop(key, None)
+    _WATCHED.discard(key)
+
+
+def _watch(scene: Scene, key) -> None:
+    """Free the scene's device buffers as soon as the scene is collected (one finalizer per key)."""
+    if key not in _WATCHED:
+        _WATCHED.add(key)
+        weakref.finalize(scene, _forget, key)
+
+
+def check_lights(lights: np.ndarray, where: str) -> None:
+    """SceneError for a light no kernel can use: non-finite position, color or direction, a
+    negative color, or a radius that is not positive and finite."""
+    bad = {"position": ~np.isfinite(lights["position"]).all(1),
+           "direction": ~np.isfinite(lights["direction"]).all(1),
+           "color": ~(np.isfinite(lights["color"]) & (lights["color"] >= 0)).all(1),
+           "radius": ~(np.isfinite(lights["radius"]) & (lights["radius"] > 0))}
+    for field, mask in bad.items():
+        if mask.any():
+            i = int(np.argmax(mask))
+            need = {"color": "finite and >= 0", "radius": "positive and finite"}.get(field, "finite")
+            raise SceneError(f"{where}: light {i}: {field} must be {need}, got {np.asarray(lights[field][i]).tolist()}")
+
+
+def shadow_indices(data: np.ndarray, where: str) -> np.ndarray:
+    """Sets `shadow` (index among shadowed spots, -1 = none) in the light records; returns the
+    mask of shadowed lights. Only spot lights have shadow maps (SceneError otherwise)."""
+    from .scene import SHADOW_MAP_SIZES
+    wants = data["shadow_size"] != 0
+    bad = wants & ((data["type"] != structs.LIGHT_SPOT) | (data["shadow_size"] < SHADOW_MAP_SIZES[0])
+                   | (data["shadow_size"] > SHADOW_MAP_SIZES[1]))
+    if bad.any():
+        i = int(np.argmax(bad))
+        raise SceneError(f"{where}: light {i}: shadow_size {int(data['shadow_size'][i])} needs a spot light and a "
+                         f"size in {list(SHADOW_MAP_SIZES)}")
+    data["shadow"] = -1
+    data["shadow"][wants] = np.arange(int(wants.sum()), dtype=np.int32)
+    return wants
 
 
 def upload_lights(scene: Scene, device) -> dict:
@@ -88,13 +135,21 @@ def upload_lights(scene: Scene, device) -> dict:
     entry = _LIGHTS.get(key)
     if entry is not None and entry[0]() is scene and entry[1] is lights and entry[2] == lights.tobytes():
         return entry[3]
-    data = np.ascontiguousarray(lights, structs.light_dtype)
+    data = np.array(lights, structs.light_dtype).reshape(-1)      # a copy: `shadow` is set below
+    check_lights(data, scene.source)
+    shadowed = shadow_indices(data, scene.source)
+    _LIGHTS.pop(key, None)                    # release the previous upload before allocating
     buf = cla.to_device(device.queue, data if len(data) else np.zeros(1, structs.light_dtype))
-    values = {"lights": buf, "n_lights": int(len(data))}
-    for k in [k for k, v in _LIGHTS.items() if v[0]() is None]:
-        del _LIGHTS[k]
+    values = {"lights": buf, "n_lights": int(len(data)), "shadow_lights": data[shadowed]}
     _LIGHTS[key] = (weakref.ref(scene), lights, lights.tobytes(), values)
+    _watch(scene, key)
     return values
+
+
+def needs_upload(scene: Scene, device) -> bool:
+    """Whether `upload()` would (re)build the scene's device buffers."""
+    entry = _UPLOADS.get((id(scene), device.info.id))
+    return entry is None or entry[0]() is not scene or entry[1] != _fingerprint(scene)
 
 
 def upload(scene: Scene, device) -> Resources:
@@ -104,6 +159,12 @@ def upload(scene: Scene, device) -> Resources:
     fingerprint = _fingerprint(scene)
     if entry is not None and entry[0]() is scene and entry[1] == fingerprint:
         return entry[2]
+    for name, cols in (("positions", 3), ("triangles", 3)):    # arrays may have been replaced since construction
+        shape = np.shape(getattr(scene, name))
+        if len(shape) != 2 or shape[1] != cols:
+            raise SceneError(f"{scene.source}: {name} must have shape (N, {cols}), got {shape}")
+    scene.validate()
+    _UPLOADS.pop(key, None)                   # release the previous upload before allocating
     q = device.queue
 
     def put(a, dtype):
@@ -122,8 +183,7 @@ def upload(scene: Scene, device) -> Resources:
         "tex_infos": cla.to_device(q, infos),
         "tex_levels": cla.to_device(q, levels),
         "srgb_lut": cla.to_device(q, srgb_to_linear_lut()),
-    }, values={"n_tris": scene.triangle_count})
-    for k in [k for k, v in _UPLOADS.items() if v[0]() is None]:
-        del _UPLOADS[k]
+    }, values={"n_tris": scene.triangle_count, "scene_bounds": scene.bounds()})   # bounds: sun shadow fit
     _UPLOADS[key] = (weakref.ref(scene), fingerprint, res)
+    _watch(scene, key)
     return res

@@ -28,9 +28,15 @@ texlevel_dtype = np.dtype([("offset", "<i4"), ("width", "<i4"), ("height", "<i4"
 LIGHT_POINT, LIGHT_SPOT = 0, 1
 light_dtype = np.dtype([
     ("position", "<f4", 3), ("radius", "<f4"), ("color", "<f4", 3), ("type", "<i4"),
-    ("direction", "<f4", 3), ("cos_outer", "<f4"), ("cos_inner", "<f4"), ("pad", "<f4", 3),
+    ("direction", "<f4", 3), ("cos_outer", "<f4"), ("cos_inner", "<f4"),
+    ("shadow_size", "<i4"), ("shadow", "<i4"), ("pad", "<f4"),
+], align=True)
+
+shadow_view_dtype = np.dtype([
+    ("m", "<f4", 16), ("x0", "<i4"), ("y0", "<i4"), ("size", "<i4"), ("ortho", "<i4"),
+    ("texel", "<f4"), ("far", "<f4"), ("split", "<f4"), ("pad", "<f4"),
 ], align=True)
 
 # name in structs.h -> dtype, for the layout test
 STRUCTS = {"Prim": prim_dtype, "Material": material_dtype, "TexInfo": texinfo_dtype, "TexLevel": texlevel_dtype,
-           "Light": light_dtype}
+           "Light": light_dtype, "ShadowView": shadow_view_dtype}

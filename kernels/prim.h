@@ -4,6 +4,10 @@
 #define CLRENDER_PRIM_H
 #include "structs.h"
 
+#ifndef ORTHO
+#define ORTHO 0          /* 1: orthographic prims (setup.cl): inv_w holds depths, weights are affine */
+#endif
+
 /* Edge functions at fixed-point sample (sx, sy): e[k] for edge k -> k+1. */
 static inline void prim_edges(const Prim* p, long sx, long sy, long e[3])
 {
@@ -25,9 +29,13 @@ static inline bool edge_is_top_left(const Prim* p, int k)
  * [0,1] when extrapolating to a neighbouring pixel for derivatives). */
 static inline float3 prim_weights(const Prim* p, const long e[3])
 {
+#if ORTHO
+    float w0 = (float)e[1], w1 = (float)e[2], w2 = (float)e[0];
+#else
     float w0 = (float)e[1] * p->inv_w[0];
     float w1 = (float)e[2] * p->inv_w[1];
     float w2 = (float)e[0] * p->inv_w[2];
+#endif
     float inv = 1.0f / ((w0 + w1) + w2);
     return (float3)(w0 * inv, w1 * inv, w2 * inv);
 }

@@ -12,7 +12,10 @@
  *
  * Buffers: prims Prim[*]; tile_offsets/tile_counts int[tiles]; tile_prims int[list_capacity];
  *          scene uvs float[2V], triangles int[3T], materials Material[M]; textures (texture.h).
- *          out: vis_depth float[W·H] (view depth, +inf = nothing), vis_prim int[W·H] (-1).
+ *          out: vis_depth float[out_offset + row·out_stride + column] (view depth, +inf = nothing:
+ *          the camera passes offset 0 and stride W; a shadow map writes its region of the shadow
+ *          atlas), vis_prim int[W·H] (-1; may be null: shadow maps keep only the depth).
+ * ORTHO=1: orthographic prims (setup.cl) whose inv_w are vertex depths: depth = Σ e_k·d_k / area.
  * Work-groups: (TILE/VEC, TILE); global size = (tiles_x·TILE/VEC, tiles_y·TILE).
  */
 #pragma OPENCL FP_CONTRACT OFF
@@ -34,7 +37,7 @@ void raster_tiles(global const Prim* prims, global const int* tile_offsets, glob
                   global const float* uvs, global const int* triangles, global const Material* materials,
                   global const uint* texels, constant float* srgb_lut,
                   global const TexInfo* tex_infos, global const TexLevel* tex_levels,
-                  global float* vis_depth, global int* vis_prim)
+                  global float* vis_depth, int out_offset, int out_stride, global int* vis_prim)
 {
     const int px0 = get_global_id(0) * VEC, py = get_global_id(1);
     const int tile = get_group_id(1) * tiles_x + get_group_id(0);
@@ -84,7 +87,11 @@ void raster_tiles(global const Prim* prims, global const int* tile_offsets, glob
         if (!ANY(inside_i)) continue;
 
         floatV num = (e_f[1] * (floatV)p.inv_w[0] + e_f[2] * (floatV)p.inv_w[1]) + e_f[0] * (floatV)p.inv_w[2];
+#if ORTHO
+        floatV depth = num / (floatV)((float)p.area);
+#else
         floatV depth = (floatV)((float)p.area) / num;
+#endif
         intV wins = inside_i & (depth <= (floatV)far) &
                     ((depth < best_depth) |
                      ((depth == best_depth) & (((intV)p.tri < best_tri) |
@@ -106,8 +113,8 @@ void raster_tiles(global const Prim* prims, global const int* tile_offsets, glob
     for (int l = 0; l < VEC; ++l) {
         int px = px0 + l;
         if (px < width) {
-            vis_depth[py * width + px] = LANE_F(best_depth, l);
-            vis_prim[py * width + px] = LANE_I(best_prim, l);
+            vis_depth[out_offset + py * out_stride + px] = LANE_F(best_depth, l);
+            if (vis_prim) vis_prim[py * width + px] = LANE_I(best_prim, l);
         }
     }
 }

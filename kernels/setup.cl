@@ -12,10 +12,22 @@
  * Buffers: positions float[3V] world space; triangles int[3T]; tri_material int[T];
  *          materials Material[M]; view_proj float[16] row-major.
  *          out: prim_count int[T], status uchar[T] (STATUS_*), staged Prim[T], prims Prim[capacity].
+ * ORTHO=1 (shadow maps of the sun, clrender/passes/shadow.py): the matrix is orthographic
+ * (clip.w = 1) and clip.z is the linear depth; the near plane is z >= near and Prim.inv_w
+ * holds the vertex depths, which raster.cl then interpolates linearly in screen space.
  * Work-groups: 1-D, any size; no local memory, no barriers.
  */
 #pragma OPENCL FP_CONTRACT OFF
 #include "structs.h"
+
+#ifndef ORTHO
+#define ORTHO 0
+#endif
+#if ORTHO
+#define CLIP_DEPTH(c) ((c).z)
+#else
+#define CLIP_DEPTH(c) ((c).w)
+#endif
 
 #ifndef GUARD_PIXELS
 #define GUARD_PIXELS 262144.0f   /* 2^18: |snapped coordinate| < 2^27, edge functions < 2^56 */
@@ -31,7 +43,7 @@ typedef struct {
 static float plane_distance(int plane, float4 c, float near, float gx, float gy)
 {
     switch (plane) {
-    case 0: return c.w - near;
+    case 0: return CLIP_DEPTH(c) - near;
     case 1: return gx * c.w - c.x;
     case 2: return gx * c.w + c.x;
     case 3: return gy * c.w - c.y;
@@ -100,7 +112,11 @@ static int make_prim(const ClipVert* poly, int k, int tri, int material, uint ma
         float w = v[i]->c.w;
         p->x[i] = snap(v[i]->c.x / w, (float)width);
         p->y[i] = snap_y(v[i]->c.y / w, (float)height);
+#if ORTHO
+        p->inv_w[i] = v[i]->c.z;          /* depth itself: interpolated linearly */
+#else
         p->inv_w[i] = 1.0f / w;
+#endif
         p->bary1[i] = v[i]->b1;
         p->bary2[i] = v[i]->b2;
     }

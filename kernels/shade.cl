@@ -8,14 +8,24 @@
  *     A = (1 - (d/r)^2)^3 for d < r, else 0;  S = 1, or t^2 for spots with
  *     t = clamp((dot(-L, dir) - cos_outer) / max(cos_inner - cos_outer, 1e-4), 0, 1);
  *     diffuse += A·S·color·max(N·L, 0);  specular += A·S·color·s·max(N·H, 0)^p where N·L > 0;
- * and applies the "global multiply": color = albedo·(ambient + diffuse) + specular.
+ * and applies the "global multiply": color = albedo·(ambient + diffuse) + specular. With SSAO
+ * the ambient pass is the report's occlusion pass (III.1): ambient becomes ambient·ao, ao read
+ * from the ssao pass's buffer; without it (SSAO 0) ao is not read and the arithmetic is unchanged.
  * Background pixels get 0. The loop over lights is uniform across the run's lanes, so light
  * records are scalar loads and the math is VEC-wide.
+ * Shadows (SHADOWS 1, report II.4): a spot light with `shadow` >= 0 multiplies its A·S by its
+ * shadow map's visibility (shadow.h) where A·S > 0; the sun (has_sun: a directional light, no
+ * attenuation, every foreground pixel) by its cascade's visibility, the cascade picked per
+ * pixel from its view depth and the cascades' splits. Each visibility is also written to its
+ * plane of shadow_out (sun first), left at 1 (the host's fill) where the light does not reach.
  *
  * Buffers: gbuffer uint[GB_PLANES][H·W]; lights Light[n]; camera float[16] = eye, F, R·tan_x,
  *          U·tan_y (float4 each, world space); tile_light_offsets/counts int[tiles],
- *          tile_lights int[list_capacity]; srgb_lut float[256].
- *          out: color float[3][H·W] (linear HDR planes), light_count int[H·W].
+ *          tile_lights int[list_capacity]; srgb_lut float[256]; ao float[H·W] (read if SSAO).
+ *          shadow_atlas float[], shadow_views ShadowView[] (sun cascades, then spots from
+ *          spot_view0); sun_dir/sun_color float[3] (direction the light travels, linear RGB).
+ *          out: color float[3][H·W] (linear HDR planes), light_count int[H·W],
+ *          shadow_out float[shadow_planes][H·W] (visibility; spots from plane spot_plane0).
  * Work-groups: (LTILE/VEC, LTILE); global size = (tiles_x·LTILE/VEC, tiles_y·LTILE).
  */
 #pragma OPENCL FP_CONTRACT OFF
@@ -28,6 +38,13 @@
 #ifndef BRUTE_FORCE
 #define BRUTE_FORCE 0
 #endif
+#ifndef SSAO
+#define SSAO 0
+#endif
+#ifndef SHADOWS
+#define SHADOWS 0
+#endif
+#include "shadow.h"
 
 /* Loads VEC consecutive words of a plane starting at pixel p0 (lanes past `valid` get `fill`). */
 static inline uintV load_plane(global const uint* plane, int p0, int valid, uint fill)
@@ -38,12 +55,26 @@ static inline uintV load_plane(global const uint* plane, int p0, int valid, uint
     return r;
 }
 
+/* Stores the run's `valid` lanes of v into a float plane at pixel p0. */
+static inline void store_plane(global float* plane, int p0, int valid, floatV v)
+{
+    if (valid == VEC) {
+        vstoreV(v, 0, plane + p0);
+        return;
+    }
+    for (int l = 0; l < valid; ++l) plane[p0 + l] = LANE_F(v, l);
+}
+
 kernel __attribute__((reqd_work_group_size(LTILE / VEC, LTILE, 1)))
 void shade(global const uint* gbuffer, int width, int height, float far, global const float* camera,
-           global const Light* lights, int n_lights, float ambient,
+           global const Light* lights, int n_lights, float ambient, global const float* ao,
            global const int* tile_light_offsets, global const int* tile_light_counts,
            global const int* tile_lights, int list_capacity, int tiles_x,
-           constant float* srgb_lut, global float* color, global int* light_count)
+           constant float* srgb_lut,
+           global const float* shadow_atlas, int atlas_stride, global const ShadowView* shadow_views,
+           float shadow_bias, float shadow_slope_bias, float shadow_normal_offset,
+           int has_sun, global const float* sun, int sun_cascades, int spot_view0, int spot_plane0,
+           global float* color, global int* light_count, global float* shadow_out)
 {
     const int px0 = get_global_id(0) * VEC, py = get_global_id(1);
     if (py >= height || px0 >= width) return;
@@ -93,6 +124,9 @@ void shade(global const uint* gbuffer, int width, int height, float far, global 
     const int first = tile_light_offsets[tile];
     const int count = max(min(tile_light_counts[tile], list_capacity - first), 0);
 #endif
+#if SHADOWS
+    const ShadowParams sp = { shadow_atlas, atlas_stride, shadow_bias, shadow_slope_bias, shadow_normal_offset };
+#endif
     if (ANY(fg)) {
         for (int k = 0; k < count; ++k) {
 #if BRUTE_FORCE
@@ -115,6 +149,18 @@ void shade(global const uint* gbuffer, int width, int height, float far, global 
                 atten *= s * s;
             }
             floatV ndotl = nx * lx + ny * ly + nz * lz;
+#if SHADOWS
+            if (lt.shadow >= 0) {              /* a shadowed spot: only where it lights */
+                intV lit = fg & (atten > 0.0f);
+                floatV vis = 1.0f;
+                if (ANY(lit)) {
+                    vis = shadow_visibility(&sp, shadow_views + spot_view0 + lt.shadow, px, py_, pz,
+                                            nx, ny, nz, ndotl, px0 + LANES, py);
+                    atten *= vis;
+                }
+                store_plane(shadow_out + (spot_plane0 + lt.shadow) * npix, p0, valid, select((floatV)1.0f, vis, lit));
+            }
+#endif
             floatV hx = lx + vx, hy = ly + vy, hz = lz + vz;
             floatV inv_h = rsqrt(fmax(hx * hx + hy * hy + hz * hz, 1e-30f));
             floatV ndoth = fmax((nx * hx + ny * hy + nz * hz) * inv_h, 0.0f);
@@ -124,10 +170,41 @@ void shade(global const uint* gbuffer, int width, int height, float far, global 
             dr += diff * lt.color[0]; dg += diff * lt.color[1]; db += diff * lt.color[2];
             sr += spec * lt.color[0]; sg += spec * lt.color[1]; sb += spec * lt.color[2];
         }
+        if (has_sun) {                         /* the sun: every foreground pixel, no falloff */
+            const float lx = -sun[0], ly = -sun[1], lz = -sun[2];
+            floatV ndotl = nx * lx + ny * ly + nz * lz;
+            floatV vis = 1.0f;
+#if SHADOWS
+            if (sun_cascades > 0) {
+                intV cascade = 0;
+                for (int c = 0; c + 1 < sun_cascades; ++c)
+                    cascade += select((intV)0, (intV)1, depth > shadow_views[c].split);
+                for (int c = 0; c < sun_cascades; ++c) {
+                    intV mine = fg & (cascade == c);
+                    if (ANY(mine))
+                        vis = select(vis, shadow_visibility(&sp, shadow_views + c, px, py_, pz, nx, ny, nz, ndotl,
+                                                            px0 + LANES, py), mine);
+                }
+                store_plane(shadow_out, p0, valid, select((floatV)1.0f, vis, fg));
+            }
+#endif
+            floatV hx = lx + vx, hy = ly + vy, hz = lz + vz;
+            floatV inv_h = rsqrt(fmax(hx * hx + hy * hy + hz * hz, 1e-30f));
+            floatV ndoth = fmax((nx * hx + ny * hy + nz * hz) * inv_h, 0.0f);
+            floatV spec = select((floatV)0.0f, vis * spec_i * powr(ndoth, spec_p), ndotl > 0.0f);
+            floatV diff = vis * fmax(ndotl, 0.0f);
+            dr += diff * sun[3]; dg += diff * sun[4]; db += diff * sun[5];
+            sr += spec * sun[3]; sg += spec * sun[4]; sb += spec * sun[5];
+        }
     }
-    floatV cr = select((floatV)0.0f, ar * (ambient + dr) + sr, fg);
-    floatV cg = select((floatV)0.0f, ag * (ambient + dg) + sg, fg);
-    floatV cb = select((floatV)0.0f, ab * (ambient + db) + sb, fg);
+#if SSAO
+    floatV ambient_ao = ambient * as_floatV(load_plane((global const uint*)ao, p0, valid, 0u));
+#else
+    const float ambient_ao = ambient;
+#endif
+    floatV cr = select((floatV)0.0f, ar * (ambient_ao + dr) + sr, fg);
+    floatV cg = select((floatV)0.0f, ag * (ambient_ao + dg) + sg, fg);
+    floatV cb = select((floatV)0.0f, ab * (ambient_ao + db) + sb, fg);
     if (valid == VEC) {
         vstoreV(cr, 0, color + p0);
         vstoreV(cg, 0, color + npix + p0);

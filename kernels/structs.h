@@ -78,7 +78,24 @@ typedef struct {
     float direction[3];
     float cos_outer;
     float cos_inner;
-    float pad[3];
+    int   shadow_size;   /* requested shadow map side in texels, 0 = casts no shadow (Scene) */
+    int   shadow;        /* index among the shadowed spot lights, -1 = none (set at upload) */
+    float pad;
 } Light;
+
+/* One shadow map: a light's view rendered by setup/binning/raster into a square region of
+ * the shadow atlas (clrender/shadow_views.py builds them). For p in world space:
+ * ndc = (r0·p, r1·p) / (r3·p), depth = r2·p (linear: view depth for a spot, distance along
+ * the sun direction for an orthographic sun cascade, whose r3 = (0, 0, 0, 1)). */
+typedef struct {
+    float m[16];      /* world -> light clip, row-major */
+    int   x0, y0;     /* atlas texel of the map's top-left corner */
+    int   size;       /* map side in texels */
+    int   ortho;      /* 1: orthographic (sun cascade), 0: perspective (spot) */
+    float texel;      /* world size of a texel: per unit depth (perspective) or absolute (ortho) */
+    float far;        /* receivers deeper than this are outside the map: lit */
+    float split;      /* sun cascade: camera view depth where the next cascade takes over */
+    float pad;
+} ShadowView;
 
 #endif

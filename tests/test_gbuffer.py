@@ -44,7 +44,9 @@ def test_struct_layouts_match_device(cl_device):
                          (structs.texinfo_dtype, ["first_level", "levels", "wrap_s", "wrap_t"]),
                          (structs.texlevel_dtype, ["offset", "width", "height", "pad"]),
                          (structs.light_dtype, ["position", "radius", "color", "type", "direction", "cos_outer",
-                                                "cos_inner", "pad"])):
+                                                "cos_inner", "shadow_size", "shadow", "pad"]),
+                         (structs.shadow_view_dtype, ["m", "x0", "y0", "size", "ortho", "texel", "far", "split",
+                                                      "pad"])):
         expect.append(dtype.itemsize)
         expect.extend(dtype.fields[n][1] for n in names)
     assert got[: len(expect)] == expect

@@ -131,8 +131,8 @@ def test_gltf_punctual_sample():
         pytest.skip(f"shared test scene {PUNCTUAL} is not available (needs ../shared/scenes next to the repo)")
     doc = json.loads(PUNCTUAL.read_text())
     lights = doc["extensions"]["KHR_lights_punctual"]["lights"]
-    with pytest.warns(UserWarning, match="1 directional light"):
-        scene = load_scene(PUNCTUAL)
+    scene = load_directional_quietly(PUNCTUAL)
+    assert scene.sun is not None            # its one directional light
     refs = light_nodes(doc)
     assert [lights[k]["type"] for _, k in refs].count("spot") == 3
     spots = [(n, k) for n, k in refs if lights[k]["type"] == "spot"]
@@ -222,16 +222,24 @@ def test_gltf_infinite_range_radius(tmp_path):
     assert scene.settings["lights_auto_radius"] == [0, 1, 2, 3]
 
 
-def test_gltf_directional_lights_are_kept_and_warned(tmp_path):
+def load_directional_quietly(path):
+    """Load, failing on any warning about directional lights (one is the sun: nothing to say)."""
+    with warnings.catch_warnings(record=True) as record:
+        warnings.simplefilter("always")
+        scene = load_scene(path)
+    assert not [w for w in record if "directional" in str(w.message)], [str(w.message) for w in record]
+    return scene
+
+
+def test_gltf_directional_light_is_kept_and_becomes_the_sun(tmp_path):
     lights = [{"type": "directional", "color": [1.0, 0.5, 0.0], "intensity": 2.0},
               {"type": "point", "range": 1.0}]
     nodes = [{"mesh": 0},
              {"rotation": [math.sin(math.radians(-45)), 0, 0, math.cos(math.radians(-45))],  # -Z -> -Y
               "extensions": light_ref(0)},
              {"translation": [0, 1, 0], "extensions": light_ref(1)}]
-    with pytest.warns(UserWarning, match="directional") as record:
-        scene = load_scene(write_gltf(tmp_path / "d.gltf", nodes, lights))
-    assert str(tmp_path / "d.gltf") in str(record[0].message)
+    scene = load_directional_quietly(write_gltf(tmp_path / "d.gltf", nodes, lights))
+    np.testing.assert_allclose(scene.sun.direction, [0, -1, 0], atol=1e-6)
     assert len(scene.lights) == 1 and scene.lights[0]["type"] == structs.LIGHT_POINT
     (sun,) = scene.settings["directional_lights"]
     np.testing.assert_allclose(sun["direction"], [0, -1, 0], atol=1e-6)
@@ -319,8 +327,7 @@ direction = [0, -3, -4]
 color = [1, 1, 0.5]
 intensity = 2
 """)
-    with pytest.warns(UserWarning, match="1 directional light"):
-        scene = load_scene(path)
+    scene = load_directional_quietly(path)
     assert scene.ambient == 0.05
     L = scene.lights
     assert L["type"].tolist() == [structs.LIGHT_POINT, structs.LIGHT_POINT, structs.LIGHT_SPOT, structs.LIGHT_SPOT]
@@ -409,8 +416,8 @@ direction = [1, 0, 0]
 [lights]
 random = { count = 3, seed = 1 }
 """)
-    with pytest.warns(UserWarning, match="directional"):
-        scene = load_scene(tmp_path / "s.toml")
+    with pytest.warns(UserWarning, match=r"1 of 2 directional light\(s\) not rendered \(the first is the sun"):
+        scene = load_scene(tmp_path / "s.toml")     # a.gltf's and the table's: the second is not rendered
     L = scene.lights
     assert len(L) == 1 + 2 + 1 + 3
     assert L["type"].tolist()[:4] == [structs.LIGHT_POINT, structs.LIGHT_SPOT, structs.LIGHT_POINT,
@@ -448,9 +455,17 @@ random = { count = 3, seed = 1 }
 def test_toml_moves_gltf_directional_lights(tmp_path):
     write_gltf(tmp_path / "a.gltf", [{"mesh": 0}, {"extensions": light_ref(0)}], [{"type": "directional"}])
     (tmp_path / "s.toml").write_text('[[mesh]]\npath = "a.gltf"\ntransform = { rotate_deg = [0, 90, 0] }\n')
-    with pytest.warns(UserWarning):
-        scene = load_scene(tmp_path / "s.toml")
+    scene = load_directional_quietly(tmp_path / "s.toml")
     np.testing.assert_allclose(scene.settings["directional_lights"][0]["direction"], [-1, 0, 0], atol=1e-6)
+    np.testing.assert_allclose(scene.sun.direction, [-1, 0, 0], atol=1e-6)
+
+
+def test_toml_sun_table_makes_every_directional_light_unrendered(tmp_path):
+    write_gltf(tmp_path / "a.gltf", [{"mesh": 0}, {"extensions": light_ref(0)}], [{"type": "directional"}])
+    (tmp_path / "s.toml").write_text('[[mesh]]\npath = "a.gltf"\n[sun]\ndirection = [0, -1, 0]\n')
+    with pytest.warns(UserWarning, match=r"1 of 1 directional light\(s\) not rendered \(the \[sun\] table"):
+        scene = load_scene(tmp_path / "s.toml")
+    np.testing.assert_allclose(scene.sun.direction, [0, -1, 0], atol=1e-6)
 
 
 @pytest.mark.parametrize("text, words", [

@@ -88,3 +88,39 @@ def test_lighting_kernels(device, capfd):
     np.testing.assert_allclose(tiled.color, brute.color, rtol=0, atol=1e-5 * brute.color.max())
     assert tiled.color.max() > 0.1 and not np.array_equal(tiled.image, brute.image)
     assert_no_device_diagnostics(capfd)
+
+
+def test_ssao_kernels(device, capfd):
+    """SSAO and its depth-aware blur on a tiny corner (floor, two walls, a box); image sides that
+    are not multiples of the work-group exercise the partial groups and runs."""
+    from reference.ao import bilateral_blur
+    from test_ssao import FLOOR, box, flat_scene
+    scene = flat_scene([FLOOR, box((-6, 0, -6.5), (6, 4, -6)), box((-6.5, 0, -6.5), (-6, 4, 6)),
+                        box((-4.5, 0, -5), (-3, 1.5, -3.5))], lights=True)
+    cam = Camera.look_at((-1.0, 3.0, 0.0), (-5.0, 0.5, -5.0), fov_y_deg=60, near=0.1, far=50)
+    raw = clrender.Renderer(21, 13, device=device.id, ssao=True, ssao_blur=False).render(scene, cam)
+    blurred = clrender.Renderer(21, 13, device=device.id, ssao=True).render(scene, cam)
+    fg = raw.triangle_id >= 0
+    assert fg.all() and raw.ao.min() < 0.8 and raw.ao.max() == 1.0
+    np.testing.assert_allclose(blurred.ao, bilateral_blur(raw.ao, raw.linear_depth), rtol=0, atol=2e-6)
+    assert {"ssao_ms", "ssao_blur_ms"} <= set(blurred.stats)
+    assert_no_device_diagnostics(capfd)
+
+
+@pytest.mark.parametrize("filt", ["hard", "pcf3x3", "poisson"])
+def test_shadow_kernels(device, capfd, filt):
+    """Shadow maps on a tiny frame: a perspective spot map and 2 orthographic sun cascades
+    through setup/binning/raster (ORTHO and not, an alpha-masked caster, atlas offsets), and
+    shade.cl's lookups with every filter; odd sizes exercise partial runs and groups."""
+    scene = masked_quad_scene()
+    scene.add_spot_light((0.3, 0.2, -1.0), (0.0, 0.0, -1.0), (3.0, 3.0, 3.0), 8.0, 20.0, 40.0, shadow=True,
+                         shadow_map_size=24)
+    scene.add_point_light((0.5, 0.2, -2.0), (2.0, 1.5, 1.0), 2.5)
+    scene.set_sun((0.3, -0.2, -1.0), (1.0, 1.0, 1.0), shadow_map_size=16)
+    cam = Camera.look_at((0, 0, 0), (0, 0, -1), fov_y_deg=60, near=0.1, far=50)
+    frame = clrender.Renderer(19, 13, device=device.id, tile_size=8, light_tile_size=8, sun_cascades=2,
+                              shadow_filter=filt).render(scene, cam)
+    assert frame.shadow.shape == (13, 19, 2) and frame.stats["shadow_maps"] == 3
+    assert frame.shadow.min() >= 0.0 and frame.shadow.max() <= 1.0
+    assert (frame.shadow < 1.0).any(), "the masked quad shadows the floor"
+    assert_no_device_diagnostics(capfd)

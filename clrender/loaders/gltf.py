@@ -30,8 +30,8 @@ Everything trimesh gets wrong or loses is read from the glTF JSON and buffers di
   color 10, whatever units the renderer's falloff then assumes. `range` -> radius; without a range (infinite) the radius is
   sqrt(256 * max(color * intensity)) clamped to [1e-3, 4 x scene diagonal] (see
   `clrender.loaders.lights`). Node scale does not change a light's range or cone (spec).
-  `directional` lights are skipped with a warning and kept in
-  `Scene.settings["directional_lights"]` (direction, color x intensity).
+  the first `directional` light becomes the sun (`Scene.sun`, shadowed); all are kept in
+  `Scene.settings["directional_lights"]` (direction, color x intensity); the others warn.
 """
 from __future__ import annotations
 
@@ -51,7 +51,8 @@ from .common import (Piece, assemble, check_faces, decode_image, load_images, tr
                      trimesh_vertex_normals, world_piece)
 from .gltf_document import (MODE_FAN, MODE_STRIP, MODE_TRIANGLES, WRAP_MODES, Document, data_uri,
                             load_document, node_light, punctual_lights, texture_source)
-from .lights import AUTO_RADIUS_KEY, DIRECTIONAL_KEY, auto_radius, scene_diagonal, warn_directional
+from .lights import (AUTO_RADIUS_KEY, DIRECTIONAL_KEY, auto_radius, scene_diagonal, sun_from_directional,
+                     warn_directional)
 
 # zfar absent (infinite projection): far = max(FAR_FROM_NEAR * znear, 2 * farthest scene corner)
 FAR_FROM_NEAR = 1000.0
@@ -125,6 +126,13 @@ def _primitive_names(doc: Document) -> dict[tuple[int, int], str]:
 
 
 # -- materials and textures -----------------------------------------------------------------------------
+# glTF 2.0 material properties (a misspelt one would otherwise silently give the default material)
+MATERIAL_KEYS = {"name", "extensions", "extras", "pbrMetallicRoughness", "normalTexture", "occlusionTexture",
+                 "emissiveTexture", "emissiveFactor", "alphaMode", "alphaCutoff", "doubleSided"}
+PBR_KEYS = {"baseColorFactor", "baseColorTexture", "metallicFactor", "roughnessFactor", "metallicRoughnessTexture",
+            "extensions", "extras"}
+
+
 def _materials(doc: Document) -> tuple[list[Material], list[Texture]]:
     images = doc.list("images")
     textures_json = doc.list("textures")
@@ -135,6 +143,11 @@ def _materials(doc: Document) -> tuple[list[Material], list[Texture]]:
     for m, mat in enumerate(doc.list("materials")):
         name = mat.get("name") or f"material{m}"
         pbr = mat.get("pbrMetallicRoughness", {}) or {}
+        unknown = [f"'{k}'" for k in mat if k not in MATERIAL_KEYS]
+        unknown += [f"'pbrMetallicRoughness.{k}'" for k in (pbr if isinstance(pbr, dict) else {}) if k not in PBR_KEYS]
+        if unknown:
+            warnings.warn(f"{doc.path}: material {m} ({name!r}): unknown properties ignored: {', '.join(unknown)}",
+                          stacklevel=3)
         color = pbr.get("baseColorFactor", [1.0, 1.0, 1.0, 1.0])
         if len(color) != 4:
             raise doc.err(f"material {m} ({name!r}): baseColorFactor needs 4 numbers")
@@ -304,6 +317,7 @@ def _lights(doc: Document, order: list[int], scene: Scene) -> None:
         scene.settings[AUTO_RADIUS_KEY] = auto
     if directional:
         scene.settings[DIRECTIONAL_KEY] = directional
+        sun_from_directional(scene)
         warn_directional(doc.path, len(directional), stacklevel=5)
 
 

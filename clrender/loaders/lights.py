@@ -15,10 +15,11 @@ decides where a light with no range is cut off. Such lights are listed in
 several files (TOML) can recompute the clamp against the final scene.
 
 Directional lights (glTF `directional`, TOML `type = "directional"`) have no position and no radius:
-they are not in `Scene.lights` yet (a later issue adds the sun); the loaders keep them in
-`Scene.settings["directional_lights"]` as ``{"direction": [x, y, z], "color": [r, g, b]}`` dicts,
-direction unit length in world space (the way the light travels), color already multiplied by the
-intensity, and warn that they are not rendered.
+they are not in `Scene.lights`; the loaders keep them all in `Scene.settings["directional_lights"]`
+as ``{"direction": [x, y, z], "color": [r, g, b]}`` dicts, direction unit length in world space (the
+way the light travels), color already multiplied by the intensity. The first one becomes the sun
+(`Scene.sun`, shadowed, `sun_from_directional`) unless a TOML `[sun]` table gives one; the loaders
+warn about the directional lights that are not rendered.
 """
 from __future__ import annotations
 
@@ -37,7 +38,7 @@ MIN_RADIUS = 1e-3
 MAX_RADIUS_DIAGONALS = 4.0
 
 __all__ = ["AUTO_RADIUS_KEY", "DIRECTIONAL_KEY", "auto_radius", "scene_diagonal", "refresh_auto_radii",
-           "transform_lights", "warn_directional"]
+           "transform_lights", "warn_directional", "sun_from_directional"]
 
 
 def scene_diagonal(scene: Scene) -> float:
@@ -99,7 +100,19 @@ def _directions(m: np.ndarray, directions) -> np.ndarray:
     return d / norm
 
 
-def warn_directional(where, count: int, stacklevel: int = 3) -> None:
-    if count:
-        warnings.warn(f"{where}: {count} directional light(s) are not rendered yet (no sun light); "
-                      f"they are kept in Scene.settings[{DIRECTIONAL_KEY!r}]", stacklevel=stacklevel)
+def sun_from_directional(scene: Scene) -> None:
+    """The scene's first directional light (settings) becomes `Scene.sun`, shadowed."""
+    from ..scene import Sun
+    directional = scene.settings.get(DIRECTIONAL_KEY)
+    if directional:
+        scene.sun = Sun(directional[0]["direction"], directional[0]["color"])
+
+
+def warn_directional(where, count: int, sun_given: bool = False, stacklevel: int = 3) -> None:
+    """Warn about directional lights that are not rendered: all but the first (the sun), or
+    all of them when the file gives the sun itself (a TOML [sun] table)."""
+    unrendered = count if sun_given else count - 1
+    if unrendered > 0:
+        which = "the [sun] table is the sun" if sun_given else "the first is the sun (Scene.sun)"
+        warnings.warn(f"{where}: {unrendered} of {count} directional light(s) not rendered ({which}); all are kept "
+                      f"in Scene.settings[{DIRECTIONAL_KEY!r}]", stacklevel=stacklevel)

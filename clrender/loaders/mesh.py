@@ -57,7 +57,16 @@ def _uv(geom) -> Optional[np.ndarray]:
 
 
 # -- OBJ -----------------------------------------------------------------------------------------------
+_NUM = r"[-+]?(?:(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?|nan|inf(?:inity)?)"
+# a `v` line that is not 3 to 7 numbers (x y z [w] or x y z r g b [a]), optionally commented
+_BAD_VERTEX = re.compile(rf"^v[ \t](?![ \t]*{_NUM}(?:[ \t]+{_NUM}){{2,6}}[ \t]*(?:#.*)?\r?$).*$", re.M | re.I)
+
+
 def _check_obj_indices(path: Path, text: str) -> None:
+    bad_vertex = _BAD_VERTEX.search(text)
+    if bad_vertex:
+        line = text.count("\n", 0, bad_vertex.start()) + 1
+        raise fail(path, f"line {line}: cannot parse vertex {bad_vertex.group(0).strip()!r} (needs 3 numbers)")
     counts = {key: len(re.findall(rf"^{key}[ \t]", text, re.M)) for key in ("v", "vt", "vn")}
     tokens = " ".join(re.findall(r"^f[ \t]+([^\n]*)", text, re.M)).split()
     if not tokens:
@@ -105,15 +114,23 @@ def _parse_map(args: list[str]) -> tuple[Optional[str], bool]:
     return (name or None), clamp
 
 
+# MTL statements clrender reads or knowingly ignores; any other (a typo such as `Kdd`) is warned about.
+_MTL_KEYS = {"newmtl", "ka", "kd", "ks", "ke", "ns", "ni", "d", "tr", "tf", "illum", "sharpness", "bump", "disp",
+             "decal", "refl", "norm", "pr", "pm", "ps", "pc", "pcr", "aniso", "anisor"}
+
+
 def _parse_mtl(file: Path, where: Path) -> dict[str, dict]:
     materials: dict[str, dict] = {}
     current = None
+    unknown = []
     for lineno, raw in enumerate(_read_text(file).splitlines(), 1):
         line = raw.split("#", 1)[0].strip()
         if not line:
             continue
         parts = line.split()
         key, args = parts[0].lower(), parts[1:]
+        if key not in _MTL_KEYS and not key.startswith("map_"):
+            unknown.append(f"line {lineno}: {parts[0]!r}")
         if key == "newmtl":
             current = materials.setdefault(" ".join(args), {})
             continue
@@ -135,6 +152,9 @@ def _parse_mtl(file: Path, where: Path) -> dict[str, dict]:
                     current["map_kd"] = (name.replace("\\", "/"), clamp)
         except ValueError:
             raise fail(file, f"line {lineno}: cannot parse {raw.strip()!r}") from None
+    if unknown:
+        warnings.warn(f"{file}: unknown MTL statements ignored: {'; '.join(unknown[:5])}"
+                      f"{' ...' if len(unknown) > 5 else ''}", stacklevel=4)
     return materials
 
 

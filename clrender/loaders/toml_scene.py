@@ -33,6 +33,15 @@ position = [0, 6, 3]
 direction = [0, -1, -0.5]     # spot, directional: required (need not be unit length)
 inner_cone_deg = 15           # spot: optional, default 0
 outer_cone_deg = 25           # spot: optional, default 45; 0 <= inner <= outer < 90
+shadow = true                 # spot: optional, default false: a shadow map over the cone
+shadow_map_size = 1024        # spot: optional, default 1024 (texels per side, 16..8192)
+
+[sun]                         # optional: the directional light (Scene.sun), lights every pixel
+direction = [-0.4, -1, -0.3]  # required: the way the light travels
+color = [1.0, 0.95, 0.9]      # optional, default [1, 1, 1]
+intensity = 3.0               # optional, default 1; multiplies color
+shadow = true                 # optional, default true: cascaded shadow maps
+shadow_map_size = 2048        # optional, default 2048 per cascade
 
 [lights]                      # optional
 random = { count = 64, seed = 7, radius = [0.5, 1.5], intensity = 1.0 }
@@ -45,9 +54,10 @@ meshes are loaded so the lights fill the whole scene's bounds; `count` is requir
 defaults to 0, `radius` (a number or [min, max]) to [0.5, 2.0], `intensity` to 1). A point or spot
 light without `radius`/`range` gets the infinite-range radius sqrt(256 * max(color * intensity))
 clamped to [1e-3, 4 x scene diagonal] (`clrender.loaders.lights`); radii and cone angles are not
-changed by mesh transforms. `type = "directional"` (direction, color, intensity) is not rendered
-yet: it goes to `Scene.settings["directional_lights"]` as {direction (unit), color x intensity}
-with a warning. `Scene.settings["lights"]` keeps the validated `[[light]]` tables as written.
+changed by mesh transforms. `type = "directional"` (direction, color, intensity) goes to
+`Scene.settings["directional_lights"]` as {direction (unit), color x intensity} with a warning;
+without a `[sun]` table the first directional light (mesh files' first) becomes the sun.
+`Scene.settings["lights"]` keeps the validated `[[light]]` tables as written.
 
 `ambient` lives at the top level (it is a Scene property, not a render setting); TOML puts keys
 written after a table header into that table, so write it before the first `[...]` line.
@@ -67,25 +77,26 @@ import numpy as np
 
 from .. import structs
 from ..camera import Camera
-from ..scene import Material, Scene, SceneError
+from ..scene import Material, Scene, SceneError, Sun
 from .common import fail, transform_normals, transform_points
 from .lights import (AUTO_RADIUS_KEY, DIRECTIONAL_KEY, auto_radius, refresh_auto_radii, scene_diagonal,
-                     transform_lights, warn_directional)
+                     sun_from_directional, transform_lights, warn_directional)
 
-TOP_LEVEL = {"mesh", "camera", "render", "light", "lights", "ambient"}
+TOP_LEVEL = {"mesh", "camera", "render", "light", "lights", "ambient", "sun"}
+SUN_KEYS = {"direction", "color", "intensity", "shadow", "shadow_map_size"}
 MESH_KEYS = {"path", "name", "transform"}
 TRANSFORM_KEYS = {"translate", "rotate_deg", "scale"}
 CAMERA_KEYS = {"eye", "target", "up", "fov_y_deg", "near", "far"}
 # render settings understood by the renderer; extend this set when a new setting is added
 RENDER_KEYS = {"width", "height", "background", "exposure"}
 LIGHT_KEYS = {"type", "name", "position", "direction", "color", "intensity", "radius", "range",
-              "inner_cone_deg", "outer_cone_deg"}
+              "inner_cone_deg", "outer_cone_deg", "shadow", "shadow_map_size"}
 LIGHT_TYPES = ("directional", "point", "spot")
 # keys each light type accepts (the union is LIGHT_KEYS)
 LIGHT_TYPE_KEYS = {
     "point": {"type", "name", "position", "color", "intensity", "radius", "range"},
     "spot": {"type", "name", "position", "direction", "color", "intensity", "radius", "range",
-             "inner_cone_deg", "outer_cone_deg"},
+             "inner_cone_deg", "outer_cone_deg", "shadow", "shadow_map_size"},
     "directional": {"type", "name", "direction", "color", "intensity"},
 }
 LIGHT_REQUIRED = {"point": ("position",), "spot": ("position", "direction"), "directional": ("direction",)}
@@ -224,6 +235,7 @@ def _lights(path, data) -> list[dict]:
         for key in ("intensity", "radius", "range", "inner_cone_deg", "outer_cone_deg"):
             if key in out:
                 out[key] = _number(path, f"{where}.{key}", out[key])
+        _shadow_keys(path, where, out)
         if "radius" in out and "range" in out:
             raise fail(path, f"{where}: give 'radius' or 'range' (a synonym), not both")
         for key in ("radius", "range"):
@@ -247,6 +259,30 @@ def _lights(path, data) -> list[dict]:
     return lights
 
 
+def _shadow_keys(path, where: str, table: dict) -> None:
+    if "shadow" in table and not isinstance(table["shadow"], bool):
+        raise fail(path, f"{where}.shadow must be true or false, got {table['shadow']!r}")
+    size = table.get("shadow_map_size", 1024)
+    if not (isinstance(size, int) and not isinstance(size, bool) and 16 <= size <= 8192):
+        raise fail(path, f"{where}.shadow_map_size must be an integer in [16, 8192], got {size!r}")
+
+
+def _sun(path, data) -> Sun:
+    """[sun] -> Scene.sun."""
+    data = _table(path, "[sun]", data)
+    _unknown(path, "[sun]", data, SUN_KEYS)
+    if "direction" not in data:
+        raise fail(path, "[sun] needs 'direction'")
+    direction = _vector(path, "sun.direction", data["direction"])
+    color = np.asarray(_vector(path, "sun.color", data.get("color", [1.0, 1.0, 1.0])), np.float64)
+    intensity = _number(path, "sun.intensity", data.get("intensity", 1.0))
+    _shadow_keys(path, "sun", {"shadow_map_size": 2048, **data})
+    try:
+        return Sun(direction, color * intensity, data.get("shadow", True), data.get("shadow_map_size", 2048))
+    except SceneError as exc:
+        raise fail(path, f"[sun]: {exc}") from None
+
+
 def _add_lights(path, scene: Scene, lights: list[dict]) -> None:
     """Append validated [[light]] tables to `scene` (point/spot -> Scene.lights, directional -> settings)."""
     diagonal = scene_diagonal(scene)
@@ -268,7 +304,9 @@ def _add_lights(path, scene: Scene, lights: list[dict]) -> None:
                 scene.add_point_light(light["position"], color, radius)
             else:
                 scene.add_spot_light(light["position"], light["direction"], color, radius,
-                                     light.get("inner_cone_deg", 0.0), light.get("outer_cone_deg", 45.0))
+                                     light.get("inner_cone_deg", 0.0), light.get("outer_cone_deg", 45.0),
+                                     shadow=light.get("shadow", False),
+                                     shadow_map_size=light.get("shadow_map_size", 1024))
         except SceneError as exc:
             raise fail(path, f"light[{k}]: {exc}") from None
     if auto:
@@ -376,6 +414,7 @@ def load_toml(path) -> Scene:
     tables = _lights(path, data["light"]) if "light" in data else None
     random = _random_lights(path, data["lights"]) if "lights" in data else None
     camera = _camera(path, data["camera"]) if "camera" in data else None
+    sun = _sun(path, data["sun"]) if "sun" in data else None
 
     meshes = data.get("mesh", [])
     if not isinstance(meshes, list):
@@ -421,6 +460,10 @@ def load_toml(path) -> Scene:
         except SceneError as exc:
             raise fail(path, f"lights.random: {exc}") from None
     refresh_auto_radii(scene)
-    n_directional = sum(1 for t in tables or () if t["type"] == "directional")
-    warn_directional(path, n_directional, stacklevel=4)
+    if sun is not None:
+        scene.sun = sun
+    else:
+        sun_from_directional(scene)
+    # the mesh files' directional lights and the [[light]] tables' (merged into settings)
+    warn_directional(path, len(scene.settings.get(DIRECTIONAL_KEY, ())), sun_given=sun is not None, stacklevel=4)
     return scene

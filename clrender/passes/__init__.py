@@ -7,7 +7,11 @@ from .particles import ParticlesPass
 from .raster import RasterPass
 from .setup import SetupPass
 from .shade import ShadePass
+from .shadow import ShadowPass
+from .ssao import SsaoPass
+from .ssao_blur import SsaoBlurPass
 from .tonemap import TonemapPass
 
 __all__ = ["RenderPass", "Resources", "SetupPass", "BinningPass", "RasterPass", "GBufferPass",
-           "LightCullPass", "ParticlesPass", "ShadePass", "TonemapPass"]
+           "LightCullPass", "ParticlesPass", "SsaoPass", "SsaoBlurPass", "ShadowPass", "ShadePass",
+           "TonemapPass"]

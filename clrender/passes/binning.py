@@ -27,8 +27,7 @@ class BinningPass(RenderPass):
         self.tile_counts = zeros(self.queue, n, np.int32)
         self.tile_offsets = zeros(self.queue, n, np.int32)
         self.tile_cursor = zeros(self.queue, n, np.int32)
-        if self.list_capacity < 8 * n:
-            self._allocate_list(8 * n)
+        self._allocate_list(8 * n)        # a new resolution drops a list grown for the old one
 
     def _allocate_list(self, capacity):
         self.list_capacity = int(capacity)

@@ -35,8 +35,7 @@ class LightCullPass(RenderPass):
         self.tile_depth = empty(self.queue, 4 * n, np.float32)
         self.counts = zeros(self.queue, n, np.int32)
         self.offsets = zeros(self.queue, n, np.int32)
-        if self.list_capacity < 16 * n:
-            self._allocate_list(16 * n)
+        self._allocate_list(16 * n)        # a new resolution drops a list grown for the old one
 
     def _allocate_list(self, capacity):
         self.list_capacity = int(capacity)

@@ -13,26 +13,41 @@ class RasterPass(RenderPass):
               "texels", "srgb_lut", "tex_infos", "tex_levels")
     outputs = ("vis_depth", "vis_prim")
 
-    def __init__(self, device, config):
+    def __init__(self, device, config, ortho: bool = False, depth_only: bool = False):
+        """ortho: orthographic prims (setup.cl ORTHO). depth_only (shadow maps): no visibility
+        buffer of its own; run() writes depth into res["raster_target"] at res["raster_offset"]
+        with row stride res["raster_stride"] (a region of the shadow atlas)."""
         super().__init__(device, config)
         self.tile = capabilities.tile_size_for(device.cl_device, config.tile_size)
         self.vec = capabilities.raster_vector_width(device.cl_device, self.tile)
-        self.kernel = device.kernel("raster.cl", "raster_tiles", {"TILE": self.tile, "VEC": self.vec})
+        self.depth_only = depth_only
+        if depth_only:
+            self.inputs = self.inputs + ("raster_target", "raster_offset", "raster_stride")
+            self.outputs = ()
+        defines = {"TILE": self.tile, "VEC": self.vec, **({"ORTHO": 1} if ortho else {})}
+        self.kernel = device.kernel("raster.cl", "raster_tiles", defines)
 
     def allocate(self, width, height):
+        if self.depth_only:
+            return
         self.vis_depth = empty(self.queue, width * height, np.float32)
         self.vis_prim = empty(self.queue, width * height, np.int32)
 
     def publish(self, res):
-        res.buffers.update(vis_depth=self.vis_depth, vis_prim=self.vis_prim)
+        if not self.depth_only:
+            res.buffers.update(vis_depth=self.vis_depth, vis_prim=self.vis_prim)
 
     def run(self, res):
         t = self.tile
         gsize = (res["tiles_x"] * t // self.vec, res["tiles_y"] * t)
+        if self.depth_only:
+            target = (res["raster_target"].data, np.int32(res["raster_offset"]), np.int32(res["raster_stride"]), None)
+        else:
+            target = (self.vis_depth.data, np.int32(0), np.int32(res["width"]), self.vis_prim.data)
         self.kernel(self.queue, gsize, (t // self.vec, t),
                     res["prims"].data, res["tile_offsets"].data, res["tile_counts"].data,
                     res["tile_prims"].data, np.int32(res["tile_list_capacity"]), np.int32(res["tiles_x"]),
                     np.int32(res["width"]), np.int32(res["height"]), np.float32(res["far"]),
                     res["uvs"].data, res["triangles"].data, res["materials"].data,
                     res["texels"].data, res["srgb_lut"].data, res["tex_infos"].data, res["tex_levels"].data,
-                    self.vis_depth.data, self.vis_prim.data)
+                    *target)

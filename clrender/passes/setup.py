@@ -12,10 +12,12 @@ class SetupPass(RenderPass):
     inputs = ("positions", "triangles", "tri_material", "materials", "view_proj", "n_tris", "near")
     outputs = ("prims", "prim_total", "prim_capacity", "tri_status")
 
-    def __init__(self, device, config):
+    def __init__(self, device, config, ortho: bool = False):
+        """ortho: the view is orthographic (a sun shadow cascade); see setup.cl ORTHO."""
         super().__init__(device, config)
-        self.count_kernel = device.kernel("setup.cl", "setup_count")
-        self.emit_kernel = device.kernel("setup.cl", "setup_emit")
+        defines = {"ORTHO": 1} if ortho else None
+        self.count_kernel = device.kernel("setup.cl", "setup_count", defines)
+        self.emit_kernel = device.kernel("setup.cl", "setup_emit", defines)
         self.scan = scan_for(device)
         self.n_tris = -1
         self.capacity = 0

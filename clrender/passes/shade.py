@@ -2,26 +2,43 @@
 from __future__ import annotations
 
 import numpy as np
+import pyopencl as cl
+import pyopencl.array as cla
 
-from .. import capabilities
+from .. import capabilities, structs
 from .. import gbuffer as layout
 from .base import RenderPass, empty, zeros
 
 
+SHADOW_FILTERS = {"hard": 0, "pcf3x3": 1, "poisson": 2}
+
+
 class ShadePass(RenderPass):
     name = "shade"
-    outputs = ("color", "light_count")
+    outputs = ("color", "light_count", "shadow", "shadow_planes")
 
     def __init__(self, device, config):
         super().__init__(device, config)
         self.brute_force = config.light_culling == "brute_force"
         self.inputs = ("gbuffer", "lights", "n_lights", "ambient", "camera_params", "srgb_lut") + (
-            () if self.brute_force else ("tile_light_counts", "tile_light_offsets", "tile_lights"))
+            () if self.brute_force else ("tile_light_counts", "tile_light_offsets", "tile_lights")) + (
+            ("ao",) if config.ssao else ()) + ("sun",) + (
+            ("shadow_atlas", "shadow_views", "shadow_layout") if config.shadows else ())
         self.tile = capabilities.tile_size_for(device.cl_device, config.light_tile_size)
         self.vec = min(capabilities.pixel_vector_width(device.cl_device), self.tile)
         self.kernel = device.kernel("shade.cl", "shade", {**layout.kernel_defines(), "LTILE": self.tile,
-                                                          "VEC": self.vec, "BRUTE_FORCE": int(self.brute_force)})
+                                                          "VEC": self.vec, "BRUTE_FORCE": int(self.brute_force),
+                                                          "SSAO": int(config.ssao),
+                                                          "SHADOWS": int(config.shadows),
+                                                          "SHADOW_FILTER": SHADOW_FILTERS[config.shadow_filter],
+                                                          "POISSON_RADIUS": f"{float(config.shadow_filter_radius)!r}f"})
         self.no_list = zeros(self.queue, 1, np.int32)     # placeholder list arguments for brute force
+        self.no_ao = zeros(self.queue, 1, np.float32)     # placeholder ao argument without SSAO (never read)
+        self.no_views = cla.to_device(self.queue, np.zeros(1, structs.shadow_view_dtype))   # placeholders: no shadows
+        self.sun = zeros(self.queue, 6, np.float32)
+        self.sun_key = None
+        self.shadow_planes = 0
+        self.shadow = zeros(self.queue, 1, np.float32)
 
     def allocate(self, width, height):
         self.tiles_x, self.tiles_y = -(-width // self.tile), -(-height // self.tile)
@@ -29,7 +46,18 @@ class ShadePass(RenderPass):
         self.light_count = empty(self.queue, width * height, np.int32)
 
     def publish(self, res):
-        res.buffers.update(color=self.color, light_count=self.light_count)
+        planes = res["shadow_layout"].planes if self.config.shadows else 0
+        needed = planes * res["width"] * res["height"]
+        if needed > self.shadow.size:
+            self.shadow = empty(self.queue, needed, np.float32)
+        self.shadow_planes = planes
+        sun = res["sun"]
+        key = None if sun is None else (sun.direction, sun.color)
+        if key is not None and key != self.sun_key:
+            self.sun.set(np.array(sun.direction + sun.color, np.float32), queue=self.queue)
+        self.sun_key = key
+        res.buffers.update(color=self.color, light_count=self.light_count, shadow=self.shadow)
+        res.values["shadow_planes"] = planes
 
     def run(self, res):
         t = self.tile
@@ -42,5 +70,25 @@ class ShadePass(RenderPass):
         self.kernel(self.queue, (self.tiles_x * t // self.vec, self.tiles_y * t), (t // self.vec, t),
                     res["gbuffer"].data, np.int32(res["width"]), np.int32(res["height"]), np.float32(res["far"]),
                     res["camera_params"].data, res["lights"].data, np.int32(res["n_lights"]),
-                    np.float32(res["ambient"]), offsets.data, counts.data, lists.data, np.int32(capacity),
-                    np.int32(self.tiles_x), res["srgb_lut"].data, self.color.data, self.light_count.data)
+                    np.float32(res["ambient"]), (res["ao"] if self.config.ssao else self.no_ao).data,
+                    offsets.data, counts.data, lists.data, np.int32(capacity),
+                    np.int32(self.tiles_x), res["srgb_lut"].data, *self._shadow_args(res),
+                    self.color.data, self.light_count.data, self.shadow.data)
+
+    def _shadow_args(self, res):
+        """Atlas, views, bias options and sun for shade.cl; fills Frame.shadow's planes with 1
+        (full visibility) where no light writes them."""
+        c = self.config
+        sun_cascades = spot_view0 = spot_plane0 = 0
+        atlas, views, stride = self.no_ao, self.no_views, 0
+        if c.shadows:
+            lay = res["shadow_layout"]
+            if lay.views:
+                atlas, views, stride = res["shadow_atlas"], res["shadow_views"], lay.atlas_width
+            sun_cascades, spot_view0, spot_plane0 = lay.sun_views, lay.sun_views, int(lay.sun_views > 0)
+        if self.shadow_planes:
+            n = self.shadow_planes * res["width"] * res["height"]
+            cl.enqueue_fill_buffer(self.queue, self.shadow.data, np.float32(1.0), 0, 4 * n)
+        return (atlas.data, np.int32(stride), views.data, np.float32(c.shadow_bias), np.float32(c.shadow_slope_bias),
+                np.float32(c.shadow_normal_offset), np.int32(res["sun"] is not None), self.sun.data,
+                np.int32(sun_cascades), np.int32(spot_view0), np.int32(spot_plane0))

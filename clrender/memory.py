@@ -1,0 +1,119 @@
+"""Device memory: what a frame will need (checked before allocating) and what clrender holds.
+
+`estimate()` predicts the bytes of the buffers the passes allocate per resolution (and, given a
+scene, of its upload), `check()` compares that with the device's global memory and its largest
+single allocation (CL_DEVICE_MAX_MEM_ALLOC_SIZE) and raises `DeviceMemoryError` naming both.
+`held_bytes()` sums the device buffers actually owned (passes, pipeline constants, scene upload);
+`Frame.stats["device_bytes"]` reports it. tests/test_memory.py keeps the estimate honest.
+"""
+from __future__ import annotations
+
+import pyopencl as cl
+import pyopencl.array as cla
+
+from . import gbuffer as layout
+from . import structs
+
+
+class DeviceMemoryError(ValueError):
+    """The requested frame or scene does not fit the device's memory."""
+
+
+def _gb(n: int) -> str:
+    return f"{n / 2**30:.2f} GiB"
+
+
+def limits(cl_device) -> tuple[int, int]:
+    """(global memory bytes, largest single allocation bytes) of a pyopencl device."""
+    return int(cl_device.global_mem_size), int(cl_device.max_mem_alloc_size)
+
+
+def estimate(width: int, height: int, config, scene=None) -> dict:
+    """{"total": bytes, "largest": bytes of the biggest single buffer, "largest_name": its name}
+    for the per-resolution buffers of every pass, plus the scene upload when `scene` is given.
+    Mirrors the allocate()/prepare_scene() sizes in clrender/passes/ (initial list capacities)."""
+    px = int(width) * int(height)
+    tiles = -(-width // config.tile_size) * -(-height // config.tile_size)
+    buffers = {
+        "raster.vis_depth+vis_prim": 8 * px,
+        "gbuffer": 4 * len(layout.PLANES) * px,
+        "shade.color": 12 * px,
+        "shade.light_count": 4 * px,
+        "tonemap.image": 4 * px,
+        "binning.tiles": 12 * tiles,
+        "binning.tile_prims": 4 * 8 * tiles,
+        "pipeline.constants": 4 * 64 + 8 * layout.SRGB_ENCODE_INTERVALS,   # matrices, sRGB encoder
+        "setup.prims": structs.prim_dtype.itemsize * 1024,
+    }
+    if getattr(config, "ssao", False):
+        buffers["ssao.ao"] = 4 * px
+        if config.ssao_blur:
+            buffers["ssao_blur.along_x+ao"] = 8 * px
+    if config.light_culling == "tiled":
+        ltiles = -(-width // config.light_tile_size) * -(-height // config.light_tile_size)
+        buffers["light_cull.tiles"] = 24 * ltiles
+        buffers["light_cull.tile_lights"] = 4 * 16 * ltiles
+    if scene is not None:
+        v, t, n_lights = len(scene.positions), scene.triangle_count, len(scene.lights)
+        texels = sum(tex.rgba.shape[0] * tex.rgba.shape[1] for tex in scene.textures) * 4 // 3 + 1
+        buffers.update({
+            "scene.vertices": 32 * v,
+            "scene.triangles": 16 * t,
+            "scene.texels": 4 * texels,
+            "scene.lights": (structs.light_dtype.itemsize + 16) * n_lights,
+            "setup.per_triangle": (9 + structs.prim_dtype.itemsize) * t,
+            "setup.prims": structs.prim_dtype.itemsize * max(1024, t + t // 8),
+        })
+    name = max(buffers, key=buffers.get)
+    return {"total": sum(buffers.values()), "largest": buffers[name], "largest_name": name}
+
+
+def check(device, width: int, height: int, config, scene=None) -> dict:
+    """`estimate()`, raising DeviceMemoryError when it exceeds the device's limits."""
+    need = estimate(width, height, config, scene)
+    total, max_alloc = limits(device.cl_device)
+    what = f"{width}x{height}" + ("" if scene is None else f" with {scene.triangle_count} triangles")
+    if need["total"] > total:
+        raise DeviceMemoryError(
+            f"{what} needs about {need['total']} bytes ({_gb(need['total'])}) of device memory but "
+            f"{device.name} has {total} bytes ({_gb(total)}); render at a smaller size")
+    if need["largest"] > max_alloc:
+        raise DeviceMemoryError(
+            f"{what} needs a {need['largest']}-byte ({_gb(need['largest'])}) buffer ({need['largest_name']}) "
+            f"but {device.name} allows at most {max_alloc} bytes ({_gb(max_alloc)}) per allocation "
+            f"(CL_DEVICE_MAX_MEM_ALLOC_SIZE); render at a smaller size")
+    return need
+
+
+def _buffers(value, out: dict) -> None:
+    """Collect {buffer pointer: bytes} from a cla.Array / cl.Buffer or containers of them."""
+    if isinstance(value, cla.Array):
+        buf = value.base_data
+        if buf is not None:
+            out[buf.int_ptr] = int(buf.size)
+    elif isinstance(value, cl.Buffer):
+        out[value.int_ptr] = int(value.size)
+    elif isinstance(value, dict):
+        for v in value.values():
+            _buffers(v, out)
+    elif isinstance(value, (list, tuple)):
+        for v in value:
+            _buffers(v, out)
+
+
+def held_bytes(pipeline, scene_res) -> dict:
+    """Bytes of device buffers held for a frame, by owner: each pass (its attributes), "pipeline"
+    (camera matrices, constant tables) and "scene" (the upload and lights). Shared buffers are
+    counted once, under the first owner."""
+    seen: dict = {}
+    by_owner = {}
+    owners = [("scene", scene_res.buffers), ("pipeline", (pipeline.matrices, pipeline.constants))]
+    owners += [(p.name, vars(p)) for p in pipeline.passes]
+    for name, value in owners:
+        found: dict = {}
+        _buffers(value, found)
+        fresh = {k: v for k, v in found.items() if k not in seen}
+        seen.update(fresh)
+        by_owner[name] = by_owner.get(name, 0) + sum(fresh.values())
+    return {"device_bytes": int(sum(seen.values())), "device_bytes_by_owner": by_owner}
+

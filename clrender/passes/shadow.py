@@ -1,0 +1,141 @@
+"""Shadow-map pass (report II.4 "Ombres"): the depth of the scene seen from each shadowed
+light, rendered by the camera's own rasterizer stages -- SetupPass, BinningPass and a
+depth-only RasterPass (kernels/setup.cl, binning.cl, raster.cl) -- into that light's square of
+one shadow atlas. No kernel of its own; kernels/shadow.h (in shade.cl) reads the atlas.
+
+Views (clrender/shadow_views.py): the sun's orthographic cascades first (setup/raster built
+with ORTHO=1), then one perspective view per shadowed spot light in light order. Maps of the
+same (size, projection) share one set of stages and run one after another; each view's prim
+and tile-list totals are copied aside so the pipeline's grow-and-retry sees every view's need.
+
+Launches nothing when the frame has no shadow map (the pipeline skips the pass).
+"""
+from __future__ import annotations
+
+import numpy as np
+import pyopencl as cl
+import pyopencl.array as cla
+
+from .. import shadow_views, structs
+from .base import Overflow, RenderPass, Resources, empty, zeros
+from .binning import BinningPass
+from .raster import RasterPass
+from .setup import SetupPass
+
+STAGES = ("setup", "binning", "raster")
+
+
+class _MapStages:
+    """Setup, binning and depth-only raster sized for maps of one side and projection."""
+
+    def __init__(self, device, config, size: int, ortho: bool, scene_res):
+        self.setup = SetupPass(device, config, ortho=ortho)
+        self.binning = BinningPass(device, config)
+        self.raster = RasterPass(device, config, ortho=ortho, depth_only=True)
+        for p in (self.setup, self.binning, self.raster):
+            p.allocate(size, size)
+        if scene_res is not None:
+            self.setup.prepare_scene(scene_res)
+
+
+class ShadowPass(RenderPass):
+    name = "shadow"
+    inputs = ("positions", "triangles", "tri_material", "materials", "n_tris", "uvs", "texels", "srgb_lut",
+              "tex_infos", "tex_levels", "shadow_lights", "sun", "camera", "scene_bounds", "width", "height")
+    outputs = ("shadow_atlas", "shadow_views", "shadow_layout", "shadow_view_count")
+
+    def __init__(self, device, config):
+        super().__init__(device, config)
+        self.stages: dict = {}
+        self.scene_res = None
+        self.layout = shadow_views.EMPTY
+        self.layout_key = None
+        self.atlas = empty(self.queue, 1, np.float32)
+        self.views = cla.to_device(self.queue, np.zeros(1, structs.shadow_view_dtype))
+        self.matrices: list = []      # per view: float[16] for setup.cl
+        self.totals: list = []        # per view: (prims needed, tile entries needed) int[1] each
+        self.events: list = []
+
+    def prepare_scene(self, scene_res):
+        self.scene_res = scene_res
+        for st in self.stages.values():
+            st.setup.prepare_scene(scene_res)
+
+    def publish(self, res):
+        layout = shadow_views.layout(res["shadow_lights"], res["sun"], res["camera"], res["width"] / res["height"],
+                                     res["scene_bounds"], self.config)
+        records = layout.records()
+        key = (records.tobytes(), tuple((v.size, v.ortho, v.near, v.far) for v in layout.views))
+        if key != self.layout_key:
+            self._upload(layout, records)
+            self.layout_key = key
+        self.layout = layout
+        res.buffers.update(shadow_atlas=self.atlas, shadow_views=self.views)
+        res.values.update(shadow_layout=layout, shadow_view_count=len(layout.views))
+
+    def _upload(self, layout, records):
+        """Stages for new map sizes, atlas and view records, per-view matrices (host work,
+        done once per change of layout, not per frame)."""
+        for v in layout.views:
+            if (v.size, v.ortho) not in self.stages:
+                self.stages[v.size, v.ortho] = _MapStages(self.device, self.config, v.size, v.ortho, self.scene_res)
+        texels = layout.atlas_width * layout.atlas_height
+        if texels > self.atlas.size:
+            self._check_atlas_fits(layout, 4 * texels)
+            self.atlas = None                 # release the old atlas before allocating the new one
+            self.atlas = empty(self.queue, texels, np.float32)
+        self.views = cla.to_device(self.queue, records)
+        while len(self.matrices) < len(layout.views):
+            self.matrices.append(zeros(self.queue, 16, np.float32))
+            self.totals.append((zeros(self.queue, 1, np.int32), zeros(self.queue, 1, np.int32)))
+        for m, v in zip(self.matrices, layout.views):
+            m.set(np.ascontiguousarray(v.matrix, np.float32).reshape(-1), queue=self.queue)
+
+    def _check_atlas_fits(self, layout, nbytes):
+        from ..memory import DeviceMemoryError, limits
+        total, max_alloc = limits(self.device.cl_device)
+        if nbytes > min(max_alloc, total):
+            raise DeviceMemoryError(
+                f"the shadow atlas ({layout.atlas_width}x{layout.atlas_height} texels for {len(layout.views)} maps) "
+                f"needs {nbytes} bytes but {self.device.name} allows {min(max_alloc, total)} per allocation; "
+                f"lower the lights' shadow_map_size")
+
+    def run(self, res):
+        self.events = []
+        stride = self.layout.atlas_width
+        for k, v in enumerate(self.layout.views):
+            st = self.stages[v.size, v.ortho]
+            sub = Resources(buffers={**res.buffers, "view_proj": self.matrices[k], "raster_target": self.atlas},
+                            values={**res.values, "width": v.size, "height": v.size, "near": v.near, "far": v.far,
+                                    "raster_offset": v.y0 * stride + v.x0, "raster_stride": stride})
+            for stage, total in ((st.setup, st.setup.prim_total), (st.binning, st.binning.total), (st.raster, None)):
+                stage.publish(sub)
+                start = cl.enqueue_marker(self.queue)
+                stage.run(sub)
+                self.events.append((stage.name, start, cl.enqueue_marker(self.queue)))
+                if total is not None:    # this view's need, before the next view overwrites it
+                    slot = self.totals[k][0 if stage is st.setup else 1]
+                    cl.enqueue_copy(self.queue, slot.data, total.data, byte_count=4)
+
+    def overflows(self):
+        out = []
+        for k, v in enumerate(self.layout.views):
+            st = self.stages[v.size, v.ortho]
+            tag = f"{v.size}:{int(v.ortho)}"
+            out.append(Overflow(f"{tag}:prims", self.totals[k][0], st.setup.capacity))
+            out.append(Overflow(f"{tag}:tile_prims", self.totals[k][1], st.binning.list_capacity))
+        return out
+
+    def grow(self, name, needed):
+        size, ortho, what = name.split(":")
+        st = self.stages[int(size), bool(int(ortho))]
+        (st.setup if what == "prims" else st.binning).grow(what, needed)
+
+    def pass_stats(self) -> dict:
+        """ms of the shadow maps' setup, binning and raster (sums over views), and the map count."""
+        out = {f"shadow_{s}_ms": 0.0 for s in STAGES}
+        for name, start, end in self.events:
+            out[f"shadow_{name}_ms"] += (end.profile.end - start.profile.start) * 1e-6
+        out["shadow_maps"] = len(self.layout.views)
+        out["shadow_atlas_texels"] = self.layout.atlas_width * self.layout.atlas_height
+        return out
