@@ -5,6 +5,8 @@ scene, of its upload), `check()` compares that with the device's global memory a
 single allocation (CL_DEVICE_MAX_MEM_ALLOC_SIZE) and raises `DeviceMemoryError` naming both.
 `held_bytes()` sums the device buffers actually owned (passes, pipeline constants, scene upload);
 `Frame.stats["device_bytes"]` reports it. tests/test_memory.py keeps the estimate honest.
+The shadow atlas and its per-size raster stages depend on the frame's lights, not only on the
+resolution: ShadowPass checks the atlas against the device's limits before allocating it.
 """
 from __future__ import annotations
 

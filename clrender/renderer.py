@@ -45,6 +45,7 @@ class RenderConfig:
     sun_cascades: int = 3            # cascaded shadow maps of the sun (1 = one map over the whole view)
     sun_split_lambda: float = 0.75   # cascade splits: lambda·logarithmic + (1 - lambda)·uniform
     shadow_atlas_max: int = 16384    # atlas side limit: maps that do not fit are an error, never dropped
+    shadow_map_reuse: bool = True    # keep a map whose light view and scene are unchanged since the last frame
 
     def __post_init__(self):
         if self.tile_size not in TILE_SIZES:
@@ -69,8 +70,9 @@ class RenderConfig:
         self._check_shadow_options()
 
     def _check_shadow_options(self):
-        if not isinstance(self.shadows, bool):
-            raise ValueError(f"shadows must be True or False, got {self.shadows!r}")
+        for name in ("shadows", "shadow_map_reuse"):
+            if not isinstance(getattr(self, name), bool):
+                raise ValueError(f"{name} must be True or False, got {getattr(self, name)!r}")
         if self.shadow_filter not in SHADOW_FILTERS:
             raise ValueError(f"shadow_filter must be one of {SHADOW_FILTERS}, got {self.shadow_filter!r}")
         for name, lo in (("shadow_bias", 0.0), ("shadow_slope_bias", 0.0), ("shadow_normal_offset", 0.0),

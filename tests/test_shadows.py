@@ -286,9 +286,47 @@ def test_atlas_beyond_device_memory_is_a_clear_error(device, monkeypatch):
         renderer.render(scene, CAMERA)
 
 
+def test_static_maps_are_reused_across_frames_and_match_fresh_renders(device):
+    """A static spot's map is not rendered again when only the camera moves (the sun's cascades
+    follow the camera); moving the light, or another map taking its atlas square, redraws it.
+    Every frame equals what a fresh renderer gives, bit for bit."""
+    def fresh(scene, camera):
+        return clrender.Renderer(W, H, device=device.id).render(scene, camera)
+
+    scene = spot_scene(size=512)
+    scene.set_sun(SUN_DIR, (1.0, 1.0, 1.0), shadow_map_size=256)
+    moved = Camera.look_at((-6.0, 7.0, 8.0), (0.0, 0.5, 0.0), fov_y_deg=50, near=0.1, far=60)
+    r = clrender.Renderer(W, H, device=device.id)
+    first = r.render(scene, CAMERA)
+    assert first.stats["shadow_maps_reused"] == 0
+    second = r.render(scene, moved)
+    assert second.stats["shadow_maps_reused"] == 1 and second.stats["shadow_maps"] == 4
+    expected = fresh(scene, moved)
+    np.testing.assert_array_equal(second.shadow, expected.shadow)
+    np.testing.assert_array_equal(second.color, expected.color)
+
+    lights = scene.lights.copy()                      # the spot moves: its map is redrawn
+    lights["position"][0] += (0.5, 0.0, 0.0)
+    scene.lights = lights
+    third = r.render(scene, moved)
+    assert third.stats["shadow_maps_reused"] == 3     # same camera: only the cascades are kept
+    np.testing.assert_array_equal(third.shadow, fresh(scene, moved).shadow)
+
+    sun = scene.sun                                   # without the sun the spot takes its square
+    scene.sun = None
+    np.testing.assert_array_equal(r.render(scene, moved).shadow, fresh(scene, moved).shadow)
+    scene.sun = sun                                   # and back: the spot's old square was overwritten
+    back = r.render(scene, moved)
+    np.testing.assert_array_equal(back.shadow, fresh(scene, moved).shadow)
+    assert (back.shadow < 0.5).any(axis=(0, 1)).all(), "every map must cast some shadow here"
+    never = clrender.Renderer(W, H, device=device.id, shadow_map_reuse=False)
+    never.render(scene, moved)
+    assert never.render(scene, moved).stats["shadow_maps_reused"] == 0
+
+
 def test_shadow_options_are_validated():
     for bad in (dict(shadow_filter="pcf5"), dict(sun_cascades=0), dict(sun_cascades=5), dict(shadow_bias=-1),
-                dict(shadows=1), dict(shadow_atlas_max=8)):
+                dict(shadows=1), dict(shadow_atlas_max=8), dict(shadow_map_reuse="yes")):
         with pytest.raises(ValueError):
             clrender.RenderConfig.from_options(**bad)
     scene = occluder_scene()

@@ -8,6 +8,11 @@ with ORTHO=1), then one perspective view per shadowed spot light in light order.
 same (size, projection) share one set of stages and run one after another; each view's prim
 and tile-list totals are copied aside so the pipeline's grow-and-retry sees every view's need.
 
+Maps are kept between frames: a view whose matrix, clip range, atlas square, scene upload and
+atlas are those it was last rendered with is not rendered again (static spot lights in an
+animation cost nothing after the first frame; sun cascades follow the camera and are redone).
+A view whose own buffers overflow invalidates the cache, so a truncated map is never kept.
+
 Launches nothing when the frame has no shadow map (the pipeline skips the pass).
 """
 from __future__ import annotations
@@ -38,6 +43,17 @@ class _MapStages:
             self.setup.prepare_scene(scene_res)
 
 
+def _may_overlap(a, b) -> bool:
+    """Do two atlas squares (row stride, x0, y0, size) share a word? Squares of one layout are
+    compared as rectangles; across layouts (another stride) as the linear spans they cover."""
+    (sa, xa, ya, na), (sb, xb, yb, nb) = a, b
+    if sa == sb:
+        return xa < xb + nb and xb < xa + na and ya < yb + nb and yb < ya + na
+    lo_a, hi_a = ya * sa + xa, (ya + na - 1) * sa + xa + na
+    lo_b, hi_b = yb * sb + xb, (yb + nb - 1) * sb + xb + nb
+    return lo_a < hi_b and lo_b < hi_a
+
+
 class ShadowPass(RenderPass):
     name = "shadow"
     inputs = ("positions", "triangles", "tri_material", "materials", "n_tris", "uvs", "texels", "srgb_lut",
@@ -55,6 +71,8 @@ class ShadowPass(RenderPass):
         self.matrices: list = []      # per view: float[16] for setup.cl
         self.totals: list = []        # per view: (prims needed, tile entries needed) int[1] each
         self.events: list = []
+        self.rendered: dict = {}      # view index -> (inputs it was rendered from, referenced buffers)
+        self.cached_views = 0
 
     def prepare_scene(self, scene_res):
         self.scene_res = scene_res
@@ -100,10 +118,34 @@ class ShadowPass(RenderPass):
                 f"needs {nbytes} bytes but {self.device.name} allows {min(max_alloc, total)} per allocation; "
                 f"lower the lights' shadow_map_size")
 
+    def _view_inputs(self, res, v):
+        """What a map's texels depend on; buffers are compared by identity (kept referenced)."""
+        scene = tuple(res[name] for name in ("positions", "triangles", "tri_material", "materials", "texels",
+                                             "tex_infos", "tex_levels", "uvs"))
+        square = (self.layout.atlas_width, v.x0, v.y0, v.size)      # atlas row stride and square
+        return (v.matrix.tobytes(), v.near, v.far, v.ortho, square), scene + (self.atlas,)
+
+    def _unchanged(self, k, inputs):
+        kept = self.rendered.get(k)
+        return kept is not None and kept[0] == inputs[0] and all(a is b for a, b in zip(kept[1], inputs[1]))
+
+    def _claim(self, k, inputs):
+        """View k is about to overwrite its atlas square: kept maps it may touch are gone."""
+        square = inputs[0][4]
+        self.rendered = {j: kept for j, kept in self.rendered.items()
+                         if j != k and not _may_overlap(kept[0][4], square)}
+        self.rendered[k] = inputs
+
     def run(self, res):
         self.events = []
+        self.cached_views = 0
         stride = self.layout.atlas_width
         for k, v in enumerate(self.layout.views):
+            inputs = self._view_inputs(res, v)
+            if self.config.shadow_map_reuse and self._unchanged(k, inputs):
+                self.cached_views += 1
+                continue
+            self._claim(k, inputs)
             st = self.stages[v.size, v.ortho]
             sub = Resources(buffers={**res.buffers, "view_proj": self.matrices[k], "raster_target": self.atlas},
                             values={**res.values, "width": v.size, "height": v.size, "near": v.near, "far": v.far,
@@ -127,6 +169,7 @@ class ShadowPass(RenderPass):
         return out
 
     def grow(self, name, needed):
+        self.rendered.clear()          # a map rendered with too small a buffer is incomplete
         size, ortho, what = name.split(":")
         st = self.stages[int(size), bool(int(ortho))]
         (st.setup if what == "prims" else st.binning).grow(what, needed)
@@ -137,5 +180,6 @@ class ShadowPass(RenderPass):
         for name, start, end in self.events:
             out[f"shadow_{name}_ms"] += (end.profile.end - start.profile.start) * 1e-6
         out["shadow_maps"] = len(self.layout.views)
+        out["shadow_maps_reused"] = self.cached_views
         out["shadow_atlas_texels"] = self.layout.atlas_width * self.layout.atlas_height
         return out
