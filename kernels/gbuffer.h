@@ -87,6 +87,15 @@ static inline uintV pack_srgb8x3V(floatV r, floatV g, floatV b, constant float2*
     return pack_srgb8V(r, srgb_encode) | (pack_srgb8V(g, srgb_encode) << 8) | (pack_srgb8V(b, srgb_encode) << 16);
 }
 
+/* Loads VEC consecutive words of a plane starting at pixel p0 (lanes past `valid` get `fill`). */
+static inline uintV load_plane(global const uint* plane, int p0, int valid, uint fill)
+{
+    if (valid == VEC) return vloadV(0, plane + p0);
+    uintV r = fill;
+    for (int l = 0; l < valid; ++l) LANE_I(r, l) = (int)plane[p0 + l];
+    return r;
+}
+
 /* Octahedral map of a unit vector onto [0,1]^2, 12 bits each, u in the low bits. */
 static inline uintV pack_oct12x2V(floatV nx, floatV ny, floatV nz)
 {
@@ -95,6 +104,19 @@ static inline uintV pack_oct12x2V(floatV nx, floatV ny, floatV nz)
     floatV sx = select((floatV)-1.0f, (floatV)1.0f, x >= 0.0f), sy = select((floatV)-1.0f, (floatV)1.0f, y >= 0.0f);
     floatV ox = select(x, (1.0f - fabs(y)) * sx, nz < 0.0f), oy = select(y, (1.0f - fabs(x)) * sy, nz < 0.0f);
     return unormV(ox * 0.5f + 0.5f, 12) | (unormV(oy * 0.5f + 0.5f, 12) << 12);
+}
+
+/* Inverse of pack_oct12x2V up to length: the caller normalizes (rsqrt where speed matters,
+ * sqrt and divide where results must be bit-identical across devices). */
+static inline void unpack_oct12x2V(uintV oct, floatV* x, floatV* y, floatV* z)
+{
+    floatV fx = convert_floatV(oct & 4095u) * (2.0f / 4095.0f) - 1.0f;
+    floatV fy = convert_floatV((oct >> 12) & 4095u) * (2.0f / 4095.0f) - 1.0f;
+    floatV fz = 1.0f - fabs(fx) - fabs(fy);
+    floatV t = fmax(-fz, 0.0f);
+    *x = fx + select(t, -t, fx >= 0.0f);
+    *y = fy + select(t, -t, fy >= 0.0f);
+    *z = fz;
 }
 
 static inline uintV pack_log2unorm8V(floatV power)

@@ -46,15 +46,6 @@
 #endif
 #include "shadow.h"
 
-/* Loads VEC consecutive words of a plane starting at pixel p0 (lanes past `valid` get `fill`). */
-static inline uintV load_plane(global const uint* plane, int p0, int valid, uint fill)
-{
-    if (valid == VEC) return vloadV(0, plane + p0);
-    uintV r = fill;
-    for (int l = 0; l < valid; ++l) LANE_I(r, l) = (int)plane[p0 + l];
-    return r;
-}
-
 /* Stores the run's `valid` lanes of v into a float plane at pixel p0. */
 static inline void store_plane(global float* plane, int p0, int valid, floatV v)
 {
@@ -97,13 +88,8 @@ void shade(global const uint* gbuffer, int width, int height, float far, global 
     floatV ab = GATHER_F(srgb_lut, as_intV((alb >> 16) & 255u));
     floatV spec_i = convert_floatV((w_alb >> GB_SPECULAR_INTENSITY_SHIFT) & 255u) * (1.0f / 255.0f);
     floatV spec_p = exp2(convert_floatV((w_nrm >> GB_SPECULAR_POWER_SHIFT) & 255u) * (SPEC_POWER_LOG2_MAX / 255.0f));
-    uintV oct = w_nrm >> GB_NORMAL_SHIFT;
-    floatV fx = convert_floatV(oct & 4095u) * (2.0f / 4095.0f) - 1.0f;
-    floatV fy = convert_floatV((oct >> 12) & 4095u) * (2.0f / 4095.0f) - 1.0f;
-    floatV fz = 1.0f - fabs(fx) - fabs(fy);
-    floatV t = fmax(-fz, 0.0f);
-    fx += select(t, -t, fx >= 0.0f);
-    fy += select(t, -t, fy >= 0.0f);
+    floatV fx, fy, fz;
+    unpack_oct12x2V(w_nrm >> GB_NORMAL_SHIFT, &fx, &fy, &fz);
     floatV inv_n = rsqrt(fx * fx + fy * fy + fz * fz);
     floatV nx = fx * inv_n, ny = fy * inv_n, nz = fz * inv_n;
 

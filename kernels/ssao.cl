@@ -55,15 +55,6 @@ constant float2 SSAO_ROTATIONS[16] = {
 constant float SSAO_OCTANT_COS[8] = {1.0f, 0.707106781f, 0.0f, -0.707106781f, -1.0f, -0.707106781f, 0.0f, 0.707106781f};
 constant float SSAO_OCTANT_SIN[8] = {0.0f, 0.707106781f, 1.0f, 0.707106781f, 0.0f, -0.707106781f, -1.0f, -0.707106781f};
 
-/* Loads VEC consecutive words of a plane starting at pixel p0 (lanes past `valid` get `fill`). */
-static inline uintV ssao_load_run(global const uint* plane, int p0, int valid, uint fill)
-{
-    if (valid == VEC) return vloadV(0, plane + p0);
-    uintV r = fill;
-    for (int l = 0; l < valid; ++l) LANE_I(r, l) = (int)plane[p0 + l];
-    return r;
-}
-
 /* lowbias32 (Wellons): a well-mixed integer hash, identical on every device. */
 static inline uintV ssao_hash(uintV h)
 {
@@ -86,19 +77,15 @@ void ssao(global const uint* gbuffer, int width, int height, float far, global c
     const int valid = min(VEC, width - px0);
     global const float* depth_plane = (global const float*)(gbuffer + GB_LINEAR_DEPTH_PLANE * npix);
 
-    intV tri = as_intV(ssao_load_run(gbuffer + GB_TRIANGLE_ID_PLANE * npix, p0, valid, 0xffffffffu));
+    intV tri = as_intV(load_plane(gbuffer + GB_TRIANGLE_ID_PLANE * npix, p0, valid, 0xffffffffu));
     intV fg = tri >= 0;
     floatV out = 1.0f;
     if (ANY(fg)) {
-        floatV lin = as_floatV(ssao_load_run(gbuffer + GB_LINEAR_DEPTH_PLANE * npix, p0, valid, 0u));
+        floatV lin = as_floatV(load_plane(gbuffer + GB_LINEAR_DEPTH_PLANE * npix, p0, valid, 0u));
         floatV depth = select((floatV)1.0f, lin * far, fg);    /* background lanes: any finite depth */
-        uintV oct = ssao_load_run(gbuffer + GB_NORMAL_PLANE * npix, p0, valid, 0u) >> GB_NORMAL_SHIFT;
-        floatV fx = convert_floatV(oct & 4095u) * (2.0f / 4095.0f) - 1.0f;
-        floatV fy = convert_floatV((oct >> 12) & 4095u) * (2.0f / 4095.0f) - 1.0f;
-        floatV fz = 1.0f - fabs(fx) - fabs(fy);
-        floatV t = fmax(-fz, 0.0f);
-        fx += select(t, -t, fx >= 0.0f);
-        fy += select(t, -t, fy >= 0.0f);
+        floatV fx, fy, fz;
+        unpack_oct12x2V(load_plane(gbuffer + GB_NORMAL_PLANE * npix, p0, valid, 0u) >> GB_NORMAL_SHIFT,
+                        &fx, &fy, &fz);
         floatV len = sqrt(fx * fx + fy * fy + fz * fz);
         floatV nx = fx / len, ny = fy / len, nz = fz / len;
 
