@@ -76,6 +76,8 @@ class ShadowPass(RenderPass):
 
     def prepare_scene(self, scene_res):
         self.scene_res = scene_res
+        # Kept maps of another scene upload can never be reused: let its buffers go now.
+        self.rendered = {k: kept for k, kept in self.rendered.items() if kept[1][0] is scene_res["positions"]}
         for st in self.stages.values():
             st.setup.prepare_scene(scene_res)
 
@@ -139,6 +141,7 @@ class ShadowPass(RenderPass):
     def run(self, res):
         self.events = []
         self.cached_views = 0
+        self.rendered = {k: kept for k, kept in self.rendered.items() if k < len(self.layout.views)}
         stride = self.layout.atlas_width
         for k, v in enumerate(self.layout.views):
             inputs = self._view_inputs(res, v)
