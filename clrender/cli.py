@@ -18,6 +18,7 @@ import math
 import os
 import sys
 import time
+import warnings
 from pathlib import Path
 from typing import Optional, Sequence
 
@@ -361,66 +362,9 @@ def _format_stats(stats: dict) -> str:
     return text
 
 
-def _device_record(d, default_id: Optional[str]) -> dict:
-    from . import capabilities
-    from .renderer import Renderer
-
-    record = {"id": d.id, "platform": d.platform, "name": d.name, "label": d.label,
-              "default": d.id == default_id}
-    try:
-        record.update(capabilities.summary(d.cl_device))
-    except Exception as exc:                     # a broken driver must not hide the others
-        record["summary_error"] = _one_line(exc)
-        record.update(_partial_summary(d.cl_device))
-    try:
-        Renderer(8, 8, device=d)
-        record["kernels"], record["kernels_error"] = "ok", None
-    except Exception as exc:
-        record["kernels"], record["kernels_error"] = "failed", _one_line(exc)
-    return record
-
-
-def _partial_summary(dev) -> dict:
-    """What capabilities.summary() would say, field by field, when it fails as a whole."""
-    import pyopencl as cl
-
-    from . import capabilities as c
-    getters = {
-        "type": lambda: cl.device_type.to_string(dev.type),
-        "version": lambda: dev.version,
-        "driver": lambda: dev.driver_version,
-        "compute_units": lambda: int(dev.max_compute_units),
-        "max_work_group_size": lambda: c.max_work_group_size(dev),
-        "max_work_item_sizes": lambda: list(dev.max_work_item_sizes),
-        "local_mem_bytes": lambda: c.local_mem_bytes(dev),
-        "global_mem_bytes": lambda: int(dev.global_mem_size),
-        "max_alloc_bytes": lambda: int(dev.max_mem_alloc_size),
-        "int64_atomics": lambda: c.has_int64_atomics(dev),
-        "image_support": lambda: bool(dev.image_support),
-        "correctly_rounded_divide": lambda: c.correctly_rounded_divide_sqrt(dev),
-        "simulator": lambda: c.is_simulator(dev),
-    }
-    out = {}
-    for key, get in getters.items():
-        try:
-            out[key] = get()
-        except Exception:
-            out[key] = None
-    return out
-
-
-def _bytes(n) -> str:
-    if not isinstance(n, int):
-        return "?"
-    for unit in ("B", "KiB", "MiB", "GiB", "TiB"):
-        if n < 1024 or unit == "TiB":
-            return f"{n:.0f} {unit}" if unit == "B" or n == int(n) else f"{n:.1f} {unit}"
-        n /= 1024
-    return "?"
-
-
 def cmd_devices(args) -> int:
     from .device import DeviceError, default_device_info, list_devices
+    from .device_report import device_record, devices_table
 
     devices = list_devices()
     if not devices:
@@ -429,26 +373,11 @@ def cmd_devices(args) -> int:
         default_id = default_device_info().id
     except DeviceError:
         default_id = None
-    records = [_device_record(d, default_id) for d in devices]
+    records = [device_record(d, default_id, _one_line) for d in devices]
     if args.json:
         print(json.dumps(records, indent=2))
         return 0
-    header = ("", "ID", "TYPE", "DEVICE", "CU", "WG", "LOCAL", "GLOBAL", "MAX ALLOC", "I64 ATOM", "KERNELS")
-    rows = []
-    for r in records:
-        rows.append(("*" if r["default"] else "", r["id"], str(r.get("type") or "?").replace("ALL | ", ""), r["label"].split(" ", 1)[1],
-                     str(r.get("compute_units", "?")), str(r.get("max_work_group_size", "?")),
-                     _bytes(r.get("local_mem_bytes")), _bytes(r.get("global_mem_bytes")),
-                     _bytes(r.get("max_alloc_bytes")),
-                     {True: "yes", False: "no"}.get(r.get("int64_atomics"), "?"), r["kernels"]))
-    widths = [max(len(row[i]) for row in (header, *rows)) for i in range(len(header))]
-    for row in (header, *rows):
-        print("  ".join(cell.ljust(w) for cell, w in zip(row, widths)).rstrip())
-    for r in records:
-        if r["kernels_error"]:
-            print(f"{r['id']}: kernels failed: {r['kernels_error']}")
-        if r.get("summary_error"):
-            print(f"{r['id']}: capabilities unavailable: {r['summary_error']}")
+    print(devices_table(records))
     if default_id is not None:
         print("* default device (override with --device NAME or $CLRENDER_DEVICE)")
     return 0
@@ -534,8 +463,21 @@ def _one_line(exc: BaseException) -> str:
     return first
 
 
+def _quiet_compiler_logs() -> None:
+    """OpenCL compilers' harmless notes (PoCL's AVX ABI remarks on pyopencl's own kernels) would
+    bury the CLI's output on first builds; CLRENDER_DEBUG=1 shows them."""
+    if _debug():
+        return
+    try:
+        from pyopencl import CompilerWarning
+    except ImportError:                          # reported properly by the command that needs it
+        return
+    warnings.simplefilter("ignore", CompilerWarning)
+
+
 def main(argv: Optional[Sequence[str]] = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
+    _quiet_compiler_logs()
     try:
         args = build_parser().parse_args(_join_vector_options(argv))
         return int(args.func(args) or 0)

@@ -1,0 +1,93 @@
+"""What `clrender devices` reports: each OpenCL device's limits and whether clrender's kernels
+build on it (every kernels/*.cl with its defaults, then a renderer with every effect on, so
+the variants the pipeline builds with -D options are compiled too)."""
+from __future__ import annotations
+
+from typing import Callable, Optional
+
+from . import capabilities
+
+
+def device_record(d, default_id: Optional[str], describe_error: Callable[[BaseException], str] = str) -> dict:
+    """A JSON-able record of DeviceInfo `d`: capabilities.summary() fields plus "kernels"
+    ("ok" or "failed") and "kernels_error". A failing query or build never raises."""
+    record = {"id": d.id, "platform": d.platform, "name": d.name, "label": d.label, "default": d.id == default_id}
+    try:
+        record.update(capabilities.summary(d.cl_device))
+    except Exception as exc:                     # a broken driver must not hide the others
+        record["summary_error"] = describe_error(exc)
+        record.update(partial_summary(d.cl_device))
+    try:
+        build_every_kernel(d)
+        record["kernels"], record["kernels_error"] = "ok", None
+    except Exception as exc:
+        record["kernels"], record["kernels_error"] = "failed", describe_error(exc)
+    return record
+
+
+def build_every_kernel(d) -> None:
+    from .device import Device, kernels_dir
+    from .renderer import Renderer
+    device = Device.get(d)
+    for source in sorted(kernels_dir().glob("*.cl")):
+        device.program(source.name)
+    Renderer(8, 8, device=d, ssao=True)
+
+
+def partial_summary(dev) -> dict:
+    """What capabilities.summary() would say, field by field, when it fails as a whole."""
+    import pyopencl as cl
+
+    c = capabilities
+    getters = {
+        "type": lambda: cl.device_type.to_string(dev.type),
+        "version": lambda: dev.version,
+        "driver": lambda: dev.driver_version,
+        "compute_units": lambda: int(dev.max_compute_units),
+        "max_work_group_size": lambda: c.max_work_group_size(dev),
+        "max_work_item_sizes": lambda: list(dev.max_work_item_sizes),
+        "local_mem_bytes": lambda: c.local_mem_bytes(dev),
+        "global_mem_bytes": lambda: int(dev.global_mem_size),
+        "max_alloc_bytes": lambda: int(dev.max_mem_alloc_size),
+        "int64_atomics": lambda: c.has_int64_atomics(dev),
+        "image_support": lambda: bool(dev.image_support),
+        "correctly_rounded_divide": lambda: c.correctly_rounded_divide_sqrt(dev),
+        "simulator": lambda: c.is_simulator(dev),
+    }
+    out = {}
+    for key, get in getters.items():
+        try:
+            out[key] = get()
+        except Exception:
+            out[key] = None
+    return out
+
+
+def format_bytes(n) -> str:
+    if not isinstance(n, int):
+        return "?"
+    for unit in ("B", "KiB", "MiB", "GiB", "TiB"):
+        if n < 1024 or unit == "TiB":
+            return f"{n:.0f} {unit}" if unit == "B" or n == int(n) else f"{n:.1f} {unit}"
+        n /= 1024
+    return "?"
+
+
+def devices_table(records: list[dict]) -> str:
+    """The `clrender devices` table, then one line per kernel-build or capability failure."""
+    header = ("", "ID", "TYPE", "DEVICE", "CU", "WG", "LOCAL", "GLOBAL", "MAX ALLOC", "I64 ATOM", "KERNELS")
+    rows = []
+    for r in records:
+        rows.append(("*" if r["default"] else "", r["id"], str(r.get("type") or "?").replace("ALL | ", ""),
+                     r["label"].split(" ", 1)[1], str(r.get("compute_units", "?")),
+                     str(r.get("max_work_group_size", "?")), format_bytes(r.get("local_mem_bytes")),
+                     format_bytes(r.get("global_mem_bytes")), format_bytes(r.get("max_alloc_bytes")),
+                     {True: "yes", False: "no"}.get(r.get("int64_atomics"), "?"), r["kernels"]))
+    widths = [max(len(row[i]) for row in (header, *rows)) for i in range(len(header))]
+    lines = ["  ".join(cell.ljust(w) for cell, w in zip(row, widths)).rstrip() for row in (header, *rows)]
+    for r in records:
+        if r["kernels_error"]:
+            lines.append(f"{r['id']}: kernels failed: {r['kernels_error']}")
+        if r.get("summary_error"):
+            lines.append(f"{r['id']}: capabilities unavailable: {r['summary_error']}")
+    return "\n".join(lines)
