@@ -140,8 +140,8 @@ kernel void gbuffer_resolve(global const float* vis_depth, global const int* vis
     intV w = select((intV)0, pidx, fg);
 #define PRIM_I(m) GATHER_M(intV, prims, w, m)
 #define PRIM_F(m) GATHER_M(floatV, prims, w, m)
-    longV X0 = convert_longV(PRIM_I(x[0])), X1 = convert_longV(PRIM_I(x[1])), X2 = convert_longV(PRIM_I(x[2]));
-    longV Y0 = convert_longV(PRIM_I(y[0])), Y1 = convert_longV(PRIM_I(y[1])), Y2 = convert_longV(PRIM_I(y[2]));
+    longV X0 = CONVERT_V(PRIM_I(x[0]), longV), X1 = CONVERT_V(PRIM_I(x[1]), longV), X2 = CONVERT_V(PRIM_I(x[2]), longV);
+    longV Y0 = CONVERT_V(PRIM_I(y[0]), longV), Y1 = CONVERT_V(PRIM_I(y[1]), longV), Y2 = CONVERT_V(PRIM_I(y[2]), longV);
     intV tri = PRIM_I(tri), flags = as_intV(GATHER_M(uintV, prims, w, flags)), mat = PRIM_I(material);
     floatV iw0 = PRIM_F(inv_w[0]), iw1 = PRIM_F(inv_w[1]), iw2 = PRIM_F(inv_w[2]);
     floatV b10 = PRIM_F(bary1[0]), b11 = PRIM_F(bary1[1]), b12 = PRIM_F(bary1[2]);
@@ -155,7 +155,7 @@ kernel void gbuffer_resolve(global const float* vis_depth, global const int* vis
     GB_PUT(planes, TRIANGLE_ID, (uintV)0xffffffffu);
     if (ANY(fg)) {
         /* Edge functions at the pixel center (docs/raster_contract.md §5), 64-bit. */
-        longV SX = convert_longV(px) * 256 + 128, SY = convert_longV(py) * 256 + 128;
+        longV SX = CONVERT_V(px, longV) * 256 + 128, SY = CONVERT_V(py, longV) * 256 + 128;
         longV dx0 = X1 - X0, dy0 = Y1 - Y0, dx1 = X2 - X1, dy1 = Y2 - Y1, dx2 = X0 - X2, dy2 = Y0 - Y2;
         longV e0 = dx0 * (SY - Y0) - dy0 * (SX - X0);
         longV e1 = dx1 * (SY - Y1) - dy1 * (SX - X1);
@@ -164,7 +164,7 @@ kernel void gbuffer_resolve(global const float* vis_depth, global const int* vis
         /* Perspective-correct barycentrics in the input triangle at (e0,e1,e2) and at the
          * neighbours one pixel right (e - dy·256) and one pixel down (e + dx·256). */
 #define BARY(E0, E1, E2, B1, B2) { \
-            floatV w0 = convert_floatV(E1) * iw0, w1 = convert_floatV(E2) * iw1, w2 = convert_floatV(E0) * iw2; \
+            floatV w0 = CONVERT_V(E1, floatV) * iw0, w1 = CONVERT_V(E2, floatV) * iw1, w2 = CONVERT_V(E0, floatV) * iw2; \
             floatV inv = 1.0f / ((w0 + w1) + w2); \
             B1 = (w0 * b10 + w1 * b11 + w2 * b12) * inv; B2 = (w0 * b20 + w1 * b21 + w2 * b22) * inv; }
         floatV c1, c2, c1x, c2x, c1y, c2y;

@@ -5,8 +5,8 @@
  * work-item; 8 or 16 on CPUs, where explicit vectors replace the implicit vectorization that
  * PoCL cannot apply across a data-dependent loop). Every work-item walks its tile's prim list,
  * skips prims whose bounding box misses its run, evaluates the three integer edge functions
- * at its pixel centers with the top-left rule (32-bit lanes when the prim is small enough to
- * be exact in 32 bits, else 64-bit), computes the perspective-correct view depth, and keeps
+ * at its pixel centers with the top-left rule (32-bit lanes wherever the values fit, else
+ * exact doubles on CPUs or 64-bit integers), computes the perspective-correct view depth, and keeps
  * the nearest fragment (ties: lower triangle id, then lower prim index). Alpha-masked prims
  * sample their base-color alpha only for lanes they would win. No barriers, no local memory.
  *
@@ -72,17 +72,36 @@ void raster_tiles(global const Prim* prims, global const int* tile_offsets, glob
             }
             inside_i = ok;
         } else {
-            longV ok = (longV)(-1);
+            /* Large prim: exact 64-bit edge values at the run's ends, then per edge 32-bit lanes
+             * whenever both ends fit (E is linear in the lane, so every lane does; the wrapping
+             * uint arithmetic is exact) -- 64-bit lanes, whose compare and float conversion
+             * CPUs without AVX-512 emulate, only for runs far from a long edge. */
+            inside_i = (intV)(-1);
             for (int k = 0; k < 3; ++k) {
                 int k1 = (k + 1) % 3;
                 long dx = p.x[k1] - p.x[k], dy = p.y[k1] - p.y[k];
                 long base = dx * (long)(sy - p.y[k]) - dy * (long)(sx0 - p.x[k]);
-                longV e = (longV)base + (longV)(-dy * 256) * convert_longV(LANES);
-                long thr = ((dy == 0 && dx > 0) || dy < 0) ? -1 : 0;
-                ok &= e > (longV)thr;
-                e_f[k] = convert_floatV(e);
+                long step = -dy * 256, last = base + step * (VEC - 1);
+                int thr = ((dy == 0 && dx > 0) || dy < 0) ? -1 : 0;
+                if (min(base, last) >= INT_MIN && max(base, last) <= INT_MAX) {
+                    intV e = as_intV((uintV)(uint)base + (uintV)(uint)step * as_uintV(LANES));
+                    inside_i &= e > (intV)thr;
+                    e_f[k] = convert_floatV(e);
+                }
+#if RASTER_FP64
+                else if (max(base, last) < (1L << 52) && min(base, last) > -(1L << 52)) {
+                    /* base, step·lane and their sum are integers below 2^53: exact doubles */
+                    doubleV e = (doubleV)((double)base) + (doubleV)((double)step) * CONVERT_V(LANES, doubleV);
+                    inside_i &= CONVERT_V(e > (doubleV)thr, intV);
+                    e_f[k] = CONVERT_V(e, floatV);
+                }
+#endif
+                else {
+                    longV e = (longV)base + (longV)step * CONVERT_V(LANES, longV);
+                    inside_i &= CONVERT_V(e > (longV)thr, intV);
+                    e_f[k] = CONVERT_V(e, floatV);
+                }
             }
-            inside_i = convert_intV(ok);
         }
         if (!ANY(inside_i)) continue;
 

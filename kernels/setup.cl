@@ -32,6 +32,13 @@
 #ifndef GUARD_PIXELS
 #define GUARD_PIXELS 262144.0f   /* 2^18: |snapped coordinate| < 2^27, edge functions < 2^56 */
 #endif
+/* Trivial-reject bits beside the clip planes' (bit 0 near, 1..4 guard band): the viewport's
+ * sides x = ±w, y = ±w, which nothing is clipped against. */
+#define SIDE_RIGHT (1 << 5)
+#define SIDE_LEFT (1 << 6)
+#define SIDE_TOP (1 << 7)
+#define SIDE_BOTTOM (1 << 8)
+#define ALL_PLANES 511
 #define MAX_POLY 9               /* 3 vertices + one per clip plane (near + 4 guard planes) + 1 */
 
 typedef struct {
@@ -156,7 +163,7 @@ static int setup_triangle(int t, global const float* positions, global const int
 {
     ClipVert poly_a[MAX_POLY], poly_b[MAX_POLY];
     const float gx = GUARD_PIXELS * 2.0f / (float)width, gy = GUARD_PIXELS * 2.0f / (float)height;
-    int outside = 0;
+    int outside = 0, all_outside = ALL_PLANES;
     for (int i = 0; i < 3; ++i) {
         int vi = triangles[3 * t + i];
         float x = positions[3 * vi], y = positions[3 * vi + 1], z = positions[3 * vi + 2];
@@ -164,9 +171,19 @@ static int setup_triangle(int t, global const float* positions, global const int
         poly_a[i].c = transform(view_proj, x, y, z);
         poly_a[i].b1 = (i == 1) ? 1.0f : 0.0f;
         poly_a[i].b2 = (i == 2) ? 1.0f : 0.0f;
+        const float4 c = poly_a[i].c;
+        int out_i = 0;
         for (int plane = 0; plane < 5; ++plane)
-            if (plane_distance(plane, poly_a[i].c, near, gx, gy) < 0.0f) outside |= 1 << plane;
+            if (plane_distance(plane, c, near, gx, gy) < 0.0f) out_i |= 1 << plane;
+        out_i |= (c.w - c.x < 0.0f ? SIDE_RIGHT : 0) | (c.w + c.x < 0.0f ? SIDE_LEFT : 0)
+               | (c.w - c.y < 0.0f ? SIDE_TOP : 0) | (c.w + c.y < 0.0f ? SIDE_BOTTOM : 0);
+        outside |= out_i & 31;
+        all_outside &= out_i;
     }
+    /* Trivial reject (contract §2): all three vertices outside one plane, so is every point of
+     * the triangle; no clipping, snapping or facing test. Most of a scene seen from a spot light. */
+    if (all_outside & 1) { *status = STATUS_CULLED_NEAR; return 0; }
+    if (all_outside) { *status = STATUS_OFFSCREEN; return 0; }
     int n = 3;
     ClipVert* poly = poly_a;
     if (outside) {

@@ -64,6 +64,30 @@ typedef CAT(float, VEC) floatV;
 #define vstore_halfV CAT(CAT(vstore_half, VEC), _rte)
 #endif
 
+/* CONVERT_V(x, T): vector conversion with round-to-nearest-even, like convert_T. Clang's
+ * builtin is a plain inline LLVM cast; PoCL's convert_T for 64-bit-lane vectors (long8,
+ * double8) is an out-of-line library call whose cost dominated raster.cl's 64-bit path. */
+#if VEC > 1 && defined(__clang__) && defined(__has_builtin)
+#if __has_builtin(__builtin_convertvector)
+#define CONVERT_V(x, T) __builtin_convertvector((x), T)
+#endif
+#endif
+#ifndef CONVERT_V
+#define CONVERT_V(x, T) CAT(convert_, T)(x)
+#endif
+
+/* RASTER_FP64: raster.cl may evaluate large edge functions as exact doubles (integers below
+ * 2^53) on CPUs, where double vectors convert to float natively and 64-bit integer vectors do
+ * not. Off for VEC = 1 (GPUs: slow doubles) and on devices without cl_khr_fp64. */
+#if VEC > 1 && defined(cl_khr_fp64)
+#pragma OPENCL EXTENSION cl_khr_fp64 : enable
+#define RASTER_FP64 1
+typedef CAT(double, VEC) doubleV;
+#define convert_doubleV CAT(convert_double, VEC)
+#else
+#define RASTER_FP64 0
+#endif
+
 /* GATHER_F/I/U(p, idx): a vector of p[idx lane by lane], written as a vector literal so the
  * compiler can emit a hardware gather instead of lane-by-lane stores into memory. */
 #if VEC == 1

@@ -28,7 +28,11 @@ def soup(seed=5, n=40):
     rng = np.random.default_rng(seed)
     centers = rng.uniform([-1.5, -1.0, -6.0], [1.5, 1.0, -0.05], (n, 1, 3))
     verts = (centers + rng.normal(scale=0.5, size=(n, 3, 3))).reshape(-1, 3).astype(np.float32)
-    return Scene.from_arrays(verts, np.arange(3 * n).reshape(-1, 3))
+    # Two in front of the camera reaching behind it: visible, so clipped (not trivially rejected).
+    crossing = np.array([[-0.3, -0.2, -1.0], [0.3, -0.2, -1.0], [0.0, 0.3, 0.5],
+                         [-0.2, 0.2, -2.0], [0.0, -0.4, 0.4], [0.4, 0.1, -1.5]], np.float32)
+    verts = np.concatenate([verts, crossing])
+    return Scene.from_arrays(verts, np.arange(len(verts)).reshape(-1, 3))
 
 
 def masked_quad_scene():

@@ -135,6 +135,10 @@ def setup(scene, camera, width: int, height: int) -> tuple[Prims, dict]:
         elif not inside.any():
             stats["culled_near"] += 1
             continue
+        # §2 trivial reject: all three vertices outside one side of the viewport (x = ±w, y = ±w).
+        x, y, w4 = v[:, 0], v[:, 1], v[:, 3]
+        if any(bool((side < F32(0)).all()) for side in (w4 - x, w4 + x, w4 - y, w4 + y)):
+            continue
         else:
             poly = clip_near(v, d)
             assert len(poly) in (3, 4)
