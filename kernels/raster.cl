@@ -6,8 +6,8 @@
  * PoCL cannot apply across a data-dependent loop). Every work-item walks its tile's prim list,
  * skips prims whose bounding box misses its run, evaluates the three integer edge functions
  * at its pixel centers with the top-left rule (32-bit lanes wherever the values fit, else
- * exact doubles on CPUs or 64-bit integers), computes the perspective-correct view depth, and keeps
- * the nearest fragment (ties: lower triangle id, then lower prim index). Alpha-masked prims
+ * exact doubles on CPUs or 64-bit integers), computes the perspective-correct view depth,
+ * and keeps the nearest fragment (ties: lower triangle id, then lower prim index). Alpha-masked prims
  * sample their base-color alpha only for lanes they would win. No barriers, no local memory.
  *
  * Buffers: prims Prim[*]; tile_offsets/tile_counts int[tiles]; tile_prims int[list_capacity];
@@ -27,7 +27,8 @@
 #include "vec.h"
 
 /* Prims whose bounding box is at most SMALL_EXTENT (24.8 units) on both axes have exact
- * 32-bit edge functions on any run inside their tile range: |d| < 2^14, |offset| < 2^15. */
+ * 32-bit edge functions on any run inside their tile range: |d| < 2^14, |offset| < 2^15.
+ * That common case needs no 64-bit arithmetic at all (scalar 64-bit math is slow on GPUs). */
 #define SMALL_EXTENT (64 * 256)
 
 kernel __attribute__((reqd_work_group_size(TILE / VEC, TILE, 1)))
