@@ -102,21 +102,32 @@ def build_options(dev: cl.Device) -> list[str]:
     return opts
 
 
-def summary(dev: cl.Device) -> dict:
-    """The limits clrender relies on, for `clrender devices` and reports."""
-    return {
-        "type": "GPU" if is_gpu(dev) else "CPU" if is_cpu(dev) else "ACCELERATOR"
-                if dev.type & cl.device_type.ACCELERATOR else "OTHER",
-        "version": dev.version,
-        "driver": dev.driver_version,
-        "compute_units": int(dev.max_compute_units),
-        "max_work_group_size": max_work_group_size(dev),
-        "max_work_item_sizes": list(dev.max_work_item_sizes),
-        "local_mem_bytes": local_mem_bytes(dev),
-        "global_mem_bytes": int(dev.global_mem_size),
-        "max_alloc_bytes": int(dev.max_mem_alloc_size),
-        "int64_atomics": has_int64_atomics(dev),
-        "image_support": bool(dev.image_support),
-        "correctly_rounded_divide": correctly_rounded_divide_sqrt(dev),
-        "simulator": is_simulator(dev),
+def summary(dev: cl.Device, tolerant: bool = False) -> dict:
+    """The limits clrender relies on, for `clrender devices` and reports. tolerant: a query the
+    driver fails gives None for that field instead of raising (one broken field must not hide
+    the rest)."""
+    queries = {
+        "type": lambda: "GPU" if is_gpu(dev) else "CPU" if is_cpu(dev) else "ACCELERATOR"
+                        if dev.type & cl.device_type.ACCELERATOR else "OTHER",
+        "version": lambda: dev.version,
+        "driver": lambda: dev.driver_version,
+        "compute_units": lambda: int(dev.max_compute_units),
+        "max_work_group_size": lambda: max_work_group_size(dev),
+        "max_work_item_sizes": lambda: list(dev.max_work_item_sizes),
+        "local_mem_bytes": lambda: local_mem_bytes(dev),
+        "global_mem_bytes": lambda: int(dev.global_mem_size),
+        "max_alloc_bytes": lambda: int(dev.max_mem_alloc_size),
+        "int64_atomics": lambda: has_int64_atomics(dev),
+        "image_support": lambda: bool(dev.image_support),
+        "correctly_rounded_divide": lambda: correctly_rounded_divide_sqrt(dev),
+        "simulator": lambda: is_simulator(dev),
     }
+    if not tolerant:
+        return {key: query() for key, query in queries.items()}
+    out = {}
+    for key, query in queries.items():
+        try:
+            out[key] = query()
+        except Exception:
+            out[key] = None
+    return out

@@ -16,7 +16,7 @@ def device_record(d, default_id: Optional[str], describe_error: Callable[[BaseEx
         record.update(capabilities.summary(d.cl_device))
     except Exception as exc:                     # a broken driver must not hide the others
         record["summary_error"] = describe_error(exc)
-        record.update(partial_summary(d.cl_device))
+        record.update(capabilities.summary(d.cl_device, tolerant=True))
     try:
         build_every_kernel(d)
         record["kernels"], record["kernels_error"] = "ok", None
@@ -32,35 +32,6 @@ def build_every_kernel(d) -> None:
     for source in sorted(kernels_dir().glob("*.cl")):
         device.program(source.name)
     Renderer(8, 8, device=d, ssao=True)
-
-
-def partial_summary(dev) -> dict:
-    """What capabilities.summary() would say, field by field, when it fails as a whole."""
-    import pyopencl as cl
-
-    c = capabilities
-    getters = {
-        "type": lambda: cl.device_type.to_string(dev.type),
-        "version": lambda: dev.version,
-        "driver": lambda: dev.driver_version,
-        "compute_units": lambda: int(dev.max_compute_units),
-        "max_work_group_size": lambda: c.max_work_group_size(dev),
-        "max_work_item_sizes": lambda: list(dev.max_work_item_sizes),
-        "local_mem_bytes": lambda: c.local_mem_bytes(dev),
-        "global_mem_bytes": lambda: int(dev.global_mem_size),
-        "max_alloc_bytes": lambda: int(dev.max_mem_alloc_size),
-        "int64_atomics": lambda: c.has_int64_atomics(dev),
-        "image_support": lambda: bool(dev.image_support),
-        "correctly_rounded_divide": lambda: c.correctly_rounded_divide_sqrt(dev),
-        "simulator": lambda: c.is_simulator(dev),
-    }
-    out = {}
-    for key, get in getters.items():
-        try:
-            out[key] = get()
-        except Exception:
-            out[key] = None
-    return out
 
 
 def format_bytes(n) -> str:
