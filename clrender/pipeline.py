@@ -113,6 +113,8 @@ class Pipeline:
             # Without SSAO no kernel runs: the term is 1 everywhere, made here.
             "ao": (res["ao"].get(queue=self.queue).reshape(height, width) if self.config.ssao
                    else np.ones((height, width), np.float32)),
+            "fragment_count": np.zeros((height, width), np.int32),
+            "transmittance": np.ones((height, width), np.float32),
         }
         stats = {f"{name}_ms": (end.profile.end - start.profile.start) * 1e-6 for name, start, end in timings}
         stats["total_ms"] = sum(stats.values())

@@ -17,6 +17,8 @@ TILE_SIZES = (8, 16, 32)
 LIGHT_CULLING = ("tiled", "brute_force")
 TONEMAPS = ("reinhard", "aces", "clamp")
 SHADOW_FILTERS = ("pcf3x3", "poisson", "hard")
+TRANSPARENCY = ("abuffer", "depth_peeling", "screen_door")
+MAX_PEEL_LAYERS = 64
 
 
 def _is_real(x) -> bool:
@@ -46,6 +48,10 @@ class RenderConfig:
     sun_split_lambda: float = 0.75   # cascade splits: lambda·logarithmic + (1 - lambda)·uniform
     shadow_atlas_max: int = 16384    # atlas side limit: maps that do not fit are an error, never dropped
     shadow_map_reuse: bool = True    # keep a map whose light view and scene are unchanged since the last frame
+    transparency: str = "abuffer"    # BLEND materials: "abuffer", "depth_peeling" or "screen_door" (docs/transparency.md)
+    peel_layers: int = 4             # depth_peeling: layers peeled per pixel (1..64)
+    max_fragments_per_pixel: int = 0   # abuffer: keep only the K nearest fragments (0 = all; drops are counted)
+    refraction: bool = False         # distort what lies behind transparent surfaces by their materials' refraction
 
     def __post_init__(self):
         if self.tile_size not in TILE_SIZES:
@@ -68,6 +74,19 @@ class RenderConfig:
         if not (_is_real(self.ssao_strength) and np.isfinite(self.ssao_strength) and self.ssao_strength >= 0):
             raise ValueError(f"ssao_strength must be a number >= 0, got {self.ssao_strength!r}")
         self._check_shadow_options()
+        self._check_transparency_options()
+
+    def _check_transparency_options(self):
+        if self.transparency not in TRANSPARENCY:
+            raise ValueError(f"transparency must be one of {TRANSPARENCY}, got {self.transparency!r}")
+        if not (isinstance(self.peel_layers, (int, np.integer)) and not isinstance(self.peel_layers, bool)
+                and 1 <= self.peel_layers <= MAX_PEEL_LAYERS):
+            raise ValueError(f"peel_layers must be an integer in [1, {MAX_PEEL_LAYERS}], got {self.peel_layers!r}")
+        k = self.max_fragments_per_pixel
+        if not (isinstance(k, (int, np.integer)) and not isinstance(k, bool) and 0 <= k <= 2**20):
+            raise ValueError(f"max_fragments_per_pixel must be an integer >= 0 (0 = no cap), got {k!r}")
+        if not isinstance(self.refraction, bool):
+            raise ValueError(f"refraction must be True or False, got {self.refraction!r}")
 
     def _check_shadow_options(self):
         for name in ("shadows", "shadow_map_reuse"):
@@ -109,10 +128,12 @@ class Frame:
     image: np.ndarray           # (H, W, 3) uint8 sRGB, tone-mapped color
     ao: np.ndarray              # (H, W) float32 ambient occlusion in [0, 1], 1 = open; all ones without SSAO
     shadow: np.ndarray          # (H, W, K) float32 visibility per shadowed light (sun first), K = 0 without
+    fragment_count: np.ndarray  # (H, W) int32 transparent fragments in front of the opaque surface (A-buffer, peeling)
+    transmittance: np.ndarray   # (H, W) float32 what the transparent layers leave of what lies behind (1 = nothing)
     stats: dict = field(default_factory=dict)
 
     AOV_NAMES = ("color", "light_count", "depth", "linear_depth", "normal", "albedo", "triangle_id", "velocity",
-                 "specular_intensity", "specular_power", "ao", "shadow", "image")
+                 "specular_intensity", "specular_power", "ao", "shadow", "fragment_count", "transmittance", "image")
 
     @property
     def height(self) -> int:
@@ -224,4 +245,5 @@ class Renderer:
         stats.update(memory.held_bytes(self.pipeline, scene_res))
         stats["time"] = float(time)
         return Frame(gbuffer=out["gbuffer"], far=camera.far, color=out["color"], light_count=out["light_count"],
-                     image=np.ascontiguousarray(out["image"]), ao=out["ao"], shadow=out["shadow"], stats=stats)
+                     image=np.ascontiguousarray(out["image"]), ao=out["ao"], shadow=out["shadow"],
+                     fragment_count=out["fragment_count"], transmittance=out["transmittance"], stats=stats)

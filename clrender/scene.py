@@ -86,10 +86,23 @@ class Material:
     double_sided: bool = True
     alpha_mode: str = "OPAQUE"
     alpha_cutoff: float = 0.5
+    opacity: float = 1.0                  # multiplies alpha; < 1 makes an OPAQUE material BLEND
+    refraction: float = 0.0               # BLEND: distortion of what lies behind (docs/transparency.md)
 
     def __post_init__(self):
         if self.alpha_mode not in ALPHA_MODES:
             raise SceneError(f"material {self.name!r}: alpha_mode must be one of {ALPHA_MODES}, got {self.alpha_mode!r}")
+        for name, lo, hi in (("opacity", 0.0, 1.0), ("refraction", 0.0, np.inf)):
+            v = getattr(self, name)
+            if not (isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, bool)
+                    and lo <= float(v) <= hi and np.isfinite(v)):
+                raise SceneError(f"material {self.name!r}: {name} must be a finite number in [{lo}, {hi}], got {v!r}")
+            object.__setattr__(self, name, float(v))
+        if self.opacity < 1.0:
+            if self.alpha_mode == "MASK":
+                raise SceneError(f"material {self.name!r}: opacity {self.opacity} < 1 needs alpha_mode OPAQUE or BLEND, "
+                                 f"not MASK")
+            object.__setattr__(self, "alpha_mode", "BLEND")
         if len(self.base_color) != 4:
             raise SceneError(f"material {self.name!r}: base_color needs 4 components")
         object.__setattr__(self, "base_color", tuple(float(c) for c in self.base_color))

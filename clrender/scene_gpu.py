@@ -70,9 +70,16 @@ def material_records(scene: Scene) -> np.ndarray:
     for i, m in enumerate(scene.materials):
         flags = (structs.MAT_DOUBLE_SIDED if m.double_sided else 0)
         flags |= {"OPAQUE": 0, "MASK": structs.MAT_MASK, "BLEND": structs.MAT_BLEND}[m.alpha_mode]
-        out[i] = (m.base_color, m.base_color_texture, m.specular_intensity, m.specular_power,
-                  m.alpha_cutoff, flags, (0, 0, 0))
+        color = m.base_color[:3] + (m.base_color[3] * m.opacity,)     # opacity folds into alpha
+        out[i] = (color, m.base_color_texture, m.specular_intensity, m.specular_power,
+                  m.alpha_cutoff, flags, m.refraction, (0, 0))
     return out
+
+
+def transparent_triangle_count(scene: Scene) -> int:
+    """Triangles with a BLEND material (they skip the G-buffer: docs/transparency.md)."""
+    blend = np.array([m.alpha_mode == "BLEND" for m in scene.materials] or [False])
+    return int(np.count_nonzero(blend[scene.triangle_material])) if scene.triangle_count else 0
 
 
 def _fingerprint(scene: Scene) -> tuple:
@@ -183,7 +190,8 @@ def upload(scene: Scene, device) -> Resources:
         "tex_infos": cla.to_device(q, infos),
         "tex_levels": cla.to_device(q, levels),
         "srgb_lut": cla.to_device(q, srgb_to_linear_lut()),
-    }, values={"n_tris": scene.triangle_count, "scene_bounds": scene.bounds()})   # bounds: sun shadow fit
+    }, values={"n_tris": scene.triangle_count, "scene_bounds": scene.bounds(),   # bounds: sun shadow fit
+               "n_transparent_tris": transparent_triangle_count(scene)})
     _UPLOADS[key] = (weakref.ref(scene), fingerprint, res)
     _watch(scene, key)
     return res

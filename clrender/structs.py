@@ -1,12 +1,12 @@
 """numpy dtypes matching kernels/structs.h (checked against the device in tests)."""
 import numpy as np
 
-PRIM_BACKFACE, PRIM_MASKED = 1, 2
+PRIM_BACKFACE, PRIM_MASKED, PRIM_DITHER = 1, 2, 4
 MAT_DOUBLE_SIDED, MAT_MASK, MAT_BLEND = 1, 2, 4
 WRAP = {"repeat": 0, "clamp": 1, "mirror": 2}
 
 STATUS_NAMES = {0: "emitted", 1: "invalid", 2: "culled_near", 3: "degenerate",
-                4: "culled_backface", 5: "culled_offscreen"}
+                4: "culled_backface", 5: "culled_offscreen", 6: "transparent"}
 STATUS_CLIPPED = 16
 
 prim_dtype = np.dtype([
@@ -19,7 +19,7 @@ prim_dtype = np.dtype([
 
 material_dtype = np.dtype([
     ("base_color", "<f4", 4), ("texture", "<i4"), ("spec_intensity", "<f4"),
-    ("spec_power", "<f4"), ("alpha_cutoff", "<f4"), ("flags", "<u4"), ("pad", "<i4", 3),
+    ("spec_power", "<f4"), ("alpha_cutoff", "<f4"), ("flags", "<u4"), ("refraction", "<f4"), ("pad", "<i4", 2),
 ], align=True)
 
 texinfo_dtype = np.dtype([("first_level", "<i4"), ("levels", "<i4"), ("wrap_s", "<i4"), ("wrap_t", "<i4")])

@@ -7,6 +7,7 @@
 /* Prim.flags */
 #define PRIM_BACKFACE 1u   /* back face of a double-sided material: flip its normal */
 #define PRIM_MASKED   2u   /* alpha MASK material: sample alpha in the raster loop */
+#define PRIM_DITHER   4u   /* screen-door BLEND material: the alpha threshold is a 4x4 ordered dither */
 
 /* Material.flags */
 #define MAT_DOUBLE_SIDED 1u
@@ -20,6 +21,7 @@
 #define STATUS_DEGENERATE 3   /* zero area once snapped */
 #define STATUS_BACKFACE   4   /* back face of a single-sided material */
 #define STATUS_OFFSCREEN  5   /* covers no pixel center of the image */
+#define STATUS_TRANSPARENT 6  /* not this setup's kind: BLEND triangles left to the transparency pass */
 #define STATUS_CLIPPED    16
 
 /* A screen-space triangle ready to rasterize: a whole input triangle or one piece of a
@@ -43,7 +45,8 @@ typedef struct {
     float spec_power;
     float alpha_cutoff;
     uint  flags;          /* MAT_* */
-    int   pad[3];
+    float refraction;     /* BLEND: screen-space distortion strength of what lies behind (docs/transparency.md) */
+    int   pad[2];
 } Material;
 
 #define WRAP_REPEAT 0

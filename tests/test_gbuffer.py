@@ -40,7 +40,7 @@ def test_struct_layouts_match_device(cl_device):
     expect = []
     for dtype, names in ((structs.prim_dtype, ["x", "tri", "y", "flags", "inv_w", "material", "bary1", "bary2", "area"]),
                          (structs.material_dtype, ["base_color", "texture", "spec_intensity", "spec_power",
-                                                   "alpha_cutoff", "flags", "pad"]),
+                                                   "alpha_cutoff", "flags", "refraction", "pad"]),
                          (structs.texinfo_dtype, ["first_level", "levels", "wrap_s", "wrap_t"]),
                          (structs.texlevel_dtype, ["offset", "width", "height", "pad"]),
                          (structs.light_dtype, ["position", "radius", "color", "type", "direction", "cos_outer",

@@ -18,7 +18,8 @@ kernel void struct_layout(global int* out)
     out[i++] = OFF(Prim, area);
     out[i++] = sizeof(Material); out[i++] = OFF(Material, base_color); out[i++] = OFF(Material, texture);
     out[i++] = OFF(Material, spec_intensity); out[i++] = OFF(Material, spec_power);
-    out[i++] = OFF(Material, alpha_cutoff); out[i++] = OFF(Material, flags); out[i++] = OFF(Material, pad);
+    out[i++] = OFF(Material, alpha_cutoff); out[i++] = OFF(Material, flags); out[i++] = OFF(Material, refraction);
+    out[i++] = OFF(Material, pad);
     out[i++] = sizeof(TexInfo);  out[i++] = OFF(TexInfo, first_level); out[i++] = OFF(TexInfo, levels);
     out[i++] = OFF(TexInfo, wrap_s); out[i++] = OFF(TexInfo, wrap_t);
     out[i++] = sizeof(TexLevel); out[i++] = OFF(TexLevel, offset); out[i++] = OFF(TexLevel, width);
