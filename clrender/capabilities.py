@@ -23,6 +23,25 @@ def is_simulator(dev: cl.Device) -> bool:
     return any(name in text for name in SIMULATOR_NAMES)
 
 
+_COMPILER_PROBE = "kernel void probe(global int* out) { out[get_global_id(0)] = 1; }"
+_compiles: dict = {}
+
+
+def compiler_error(dev: cl.Device):
+    """None when the device builds a trivial OpenCL C kernel, else the build error (cached).
+    Some installs list a device whose compiler cannot target this CPU (e.g. an LLVM older than
+    the CPU): `select_devices("all")` leaves such a device out instead of failing every test."""
+    key = dev.int_ptr
+    if key not in _compiles:
+        try:
+            cl.Program(cl.Context([dev]), _COMPILER_PROBE).build()
+            _compiles[key] = None
+        except cl.Error as exc:
+            lines = [ln.strip() for ln in str(exc).splitlines() if "error" in ln.lower()]
+            _compiles[key] = (lines[-1] if lines else str(exc).splitlines()[0])[:200]
+    return _compiles[key]
+
+
 def max_work_group_size(dev: cl.Device) -> int:
     return int(dev.max_work_group_size)
 

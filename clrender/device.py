@@ -81,18 +81,36 @@ def list_devices() -> list[DeviceInfo]:
 
 
 def select_devices(spec: Optional[str] = None) -> list[DeviceInfo]:
-    """`all` (every device but simulators), a name substring, or `P:D`."""
+    """`all` (every device but simulators, and but devices whose compiler cannot build a trivial
+    kernel: a warning names them), a name substring, or `P:D`."""
     devices = list_devices()
     if not devices:
         raise DeviceError("no OpenCL device found: install one, e.g. `pip install pocl-binary-distribution`")
     if spec is None or spec.strip().lower() == "all":
-        chosen = [d for d in devices if not d.is_simulator]
-        return chosen or devices
+        usable = []
+        for d in devices:
+            error = capabilities.compiler_error(d.cl_device)
+            if error is None:
+                usable.append(d)
+            else:
+                _warn_unusable(d, error)
+        chosen = [d for d in usable if not d.is_simulator]
+        return chosen or usable or devices
     chosen = [d for d in devices if d.matches(spec)]
     if not chosen:
         names = "; ".join(d.label for d in devices)
         raise DeviceError(f"no OpenCL device matches {spec!r}; available: {names}")
     return chosen
+
+
+_warned: set = set()
+
+
+def _warn_unusable(d: DeviceInfo, error: str) -> None:
+    if d.id not in _warned:
+        _warned.add(d.id)
+        import warnings
+        warnings.warn(f"OpenCL device {d.label} cannot build kernels ({error}); left out of 'all'", stacklevel=3)
 
 
 def default_device_info(spec: Optional[str] = None) -> DeviceInfo:
