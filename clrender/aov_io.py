@@ -16,7 +16,7 @@ from typing import Sequence
 
 import numpy as np
 
-INT_AOVS = ("triangle_id",)     # integer AOVs: no .exr
+INT_AOVS = ("triangle_id", "fragment_count")     # integer AOVs: no .exr
 
 
 # -- output files -----------------------------------------------------------------------------
@@ -104,7 +104,8 @@ def _preview_velocity(vel: np.ndarray) -> np.ndarray:
 
 
 def _preview_heat(counts: np.ndarray) -> np.ndarray:
-    """Lights per tile as a black -> red -> yellow -> white heat map (scaled to the maximum)."""
+    """Counts (lights per tile, fragments per pixel) as a black -> red -> yellow -> white heat map
+    (scaled to the maximum; all black when every count is 0)."""
     t = np.clip(counts.astype(np.float64) / max(int(counts.max()), 1), 0.0, 1.0)[..., None]
     ramp = np.clip(np.concatenate([t * 3.0, t * 3.0 - 1.0, t * 3.0 - 2.0], -1), 0.0, 1.0)
     return _u8(ramp)
@@ -122,7 +123,7 @@ def preview(name: str, data: np.ndarray, background: np.ndarray) -> np.ndarray:
         return out
     if name == "albedo":
         return linear_to_srgb8(data)
-    if name in ("specular_intensity", "ao"):    # [0, 1] as grey; ao: white = unoccluded
+    if name in ("specular_intensity", "ao", "transmittance"):   # [0, 1] as grey; white = unoccluded / clear
         return _u8(data)
     if name == "specular_power":
         return _u8(np.log2(np.maximum(data, 1.0)) / SPEC_POWER_LOG2_MAX)
@@ -132,7 +133,7 @@ def preview(name: str, data: np.ndarray, background: np.ndarray) -> np.ndarray:
         return _preview_velocity(data)
     if name == "color":                    # linear HDR: Reinhard, as the default image
         return linear_to_srgb8(data / (1.0 + np.maximum(data, 0.0)))
-    if name == "light_count":
+    if name in ("light_count", "fragment_count"):
         return _preview_heat(data)
     if name == "shadow":                   # (H, W, K): the darkest shadowed light per pixel, white = lit
         return _u8(data.min(-1) if data.shape[-1] else np.ones(data.shape[:2], np.float32))

@@ -1,6 +1,8 @@
 """Command line: `clrender render | devices | info`, a thin loop over the library API.
 
     clrender render SCENE [SCENE ...] -o OUT [--width W --height H --device NAME --tile-size N
+                    --transparency abuffer|depth_peeling|screen_door --peel-layers N
+                    --max-fragments-per-pixel K --refraction
                     --aov depth,normal,... --camera-eye x,y,z --camera-target x,y,z --fov DEG --quiet]
     clrender devices [--json]
     clrender info SCENE [--json]
@@ -78,6 +80,16 @@ def _positive_int(text: str) -> int:
     return value
 
 
+def _non_negative_int(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected an integer >= 0, got {text!r}") from None
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"expected an integer >= 0, got {text!r}")
+    return value
+
+
 def _fov(text: str) -> float:
     try:
         value = float(text)
@@ -114,6 +126,8 @@ def _join_vector_options(argv: list[str]) -> list[str]:
 
 
 def build_parser() -> argparse.ArgumentParser:
+    from .renderer import TRANSPARENCY
+
     parser = _Parser(prog=PROG, description="clrender: a tiled deferred renderer whose pixels are "
                                             "computed by OpenCL kernels.")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
@@ -144,6 +158,17 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--ssao", action="store_true", default=None, help="screen-space ambient occlusion (default off)")
     r.add_argument("--ssao-radius", type=float, metavar="R", help="with --ssao: its radius in world units (default 1)")
     r.add_argument("--ssao-strength", type=float, metavar="S", help="with --ssao: ao = 1 - S·occlusion (default 1)")
+    r.add_argument("--transparency", choices=TRANSPARENCY,
+                   help="how BLEND materials are drawn: per-pixel sorted fragment lists, depth peeling, or "
+                        "a stipple pattern in the G-buffer (default abuffer)")
+    r.add_argument("--peel-layers", type=_positive_int, metavar="N",
+                   help="with --transparency depth_peeling: layers peeled per pixel, 1..64 (default 4)")
+    r.add_argument("--max-fragments-per-pixel", type=_non_negative_int, metavar="K",
+                   help="with the A-buffer: keep only the K nearest transparent fragments of a pixel "
+                        "(default 0: all of them)")
+    r.add_argument("--refraction", action="store_true", default=None,
+                   help="distort what lies behind transparent surfaces by their materials' refraction "
+                        "(default off)")
     r.add_argument("--time", type=float, default=0.0, metavar="SECONDS",
                    help="animation time: places the scene's light particles (default 0)")
     r.add_argument("--aov", type=_aov_list, default=[], metavar="LIST",
@@ -299,7 +324,9 @@ def cmd_render(args) -> int:
     options = {name: value for name, value in (
         ("tile_size", args.tile_size), ("light_tile_size", args.light_tile_size),
         ("light_culling", args.light_culling), ("tonemap", args.tonemap), ("exposure", args.exposure),
-        ("ssao", args.ssao), ("ssao_radius", args.ssao_radius), ("ssao_strength", args.ssao_strength))
+        ("ssao", args.ssao), ("ssao_radius", args.ssao_radius), ("ssao_strength", args.ssao_strength),
+        ("transparency", args.transparency), ("peel_layers", args.peel_layers),
+        ("max_fragments_per_pixel", args.max_fragments_per_pixel), ("refraction", args.refraction))
         if value is not None}
     for name, value in options.items():          # name the offending flag
         try:
@@ -416,7 +443,7 @@ def cmd_info(args) -> int:
         ("vertices", s["vertices"]),
         ("meshes", s["meshes"]),
         ("materials", f"{s['materials']} ({s['alpha_masked_materials']} alpha-masked, "
-                      f"{s['single_sided_materials']} single-sided)"),
+                      f"{s['transparent_materials']} transparent, {s['single_sided_materials']} single-sided)"),
         ("textures", s["textures"] if not s["texture_sizes"] else
          f"{s['textures']} ({', '.join(f'{w}x{h}' for w, h in s['texture_sizes'])})"),
         ("bounds", f"min ({fmt(s['bounds_min'])})  max ({fmt(s['bounds_max'])})"),

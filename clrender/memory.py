@@ -30,6 +30,18 @@ def limits(cl_device) -> tuple[int, int]:
     return int(cl_device.global_mem_size), int(cl_device.max_mem_alloc_size)
 
 
+def check_buffer(device, what: str, entries: int, bytes_per_entry: int, capacity: int) -> None:
+    """DeviceMemoryError unless `capacity` entries of `bytes_per_entry` (in 4-byte arrays) fit
+    the device; raised before allocating, naming what needs the memory."""
+    need = int(capacity) * bytes_per_entry
+    total, max_alloc = limits(device.cl_device)
+    if need > total or 4 * int(capacity) > max_alloc:
+        raise DeviceMemoryError(
+            f"{what} need {need} bytes ({_gb(need)}) of device memory for {entries} entries but {device.name} "
+            f"has {total} bytes ({_gb(total)}), at most {max_alloc} bytes ({_gb(max_alloc)}) per allocation; "
+            f"render at a smaller size or set max_fragments_per_pixel")
+
+
 def estimate(width: int, height: int, config, scene=None) -> dict:
     """{"total": bytes, "largest": bytes of the biggest single buffer, "largest_name": its name}
     for the per-resolution buffers of every pass, plus the scene upload when `scene` is given.

@@ -9,8 +9,9 @@ import pyopencl.array as cla
 
 from . import gbuffer as layout
 from .passes.base import zeros
-from .passes import (BinningPass, GBufferPass, LightCullPass, ParticlesPass, RasterPass, Resources, SetupPass,
-                     ShadePass, ShadowPass, SsaoBlurPass, SsaoPass, TonemapPass)
+from .passes import (AbufferPass, BinningPass, CompositePass, FragmentsPass, GBufferPass, LightCullPass,
+                     ParticlesPass, PeelPass, RasterPass, Resources, SetupPass, ShadePass, ShadowPass, SsaoBlurPass,
+                     SsaoPass, TonemapPass)
 
 MAX_RETRIES = 8
 
@@ -20,8 +21,18 @@ class Pipeline:
         self.device = device
         self.config = config
         self.queue = device.queue
-        self.passes = [SetupPass(device, config), BinningPass(device, config),
-                       RasterPass(device, config), GBufferPass(device, config), ParticlesPass(device, config)]
+        # BLEND triangles: left to the transparency passes (A-buffer, peeling) or dithered into
+        # the G-buffer (screen door); a scene without any renders exactly as without this.
+        fragments = config.transparency != "screen_door"
+        self.passes = [SetupPass(device, config, select="opaque" if fragments else "dither"),
+                       BinningPass(device, config), RasterPass(device, config), GBufferPass(device, config),
+                       ParticlesPass(device, config)]
+        self.transparency = []          # run only for scenes with BLEND triangles; allocated on first use
+        if fragments:
+            walk = FragmentsPass(device, config)
+            resolve = (AbufferPass if config.transparency == "abuffer" else PeelPass)(device, config, walk)
+            self.transparency = [walk, resolve, CompositePass(device, config)]
+            self.passes.append(walk)
         if config.light_culling == "tiled":        # brute force launches no culling kernel
             self.light_cull = LightCullPass(device, config)
             self.passes.append(self.light_cull)
@@ -35,9 +46,10 @@ class Pipeline:
         self.shadow = ShadowPass(device, config) if config.shadows else None
         if self.shadow is not None:
             self.passes.append(self.shadow)
-        self.passes += [ShadePass(device, config), TonemapPass(device, config)]
+        self.passes += [ShadePass(device, config), *self.transparency[1:], TonemapPass(device, config)]
         self._check_wiring()
         self.size = None
+        self.transparency_size = None
         self.matrices = {name: zeros(self.queue, 16, np.float32)
                          for name in ("view_proj", "prev_view_proj", "view_matrix", "camera_params")}
         self.constants = {"srgb_encode": cla.to_device(self.queue, layout.srgb_encode_table())}
@@ -47,18 +59,24 @@ class Pipeline:
                     "srgb_lut", "tex_infos", "tex_levels", "n_tris", "view_proj", "prev_view_proj",
                     "near", "far", "width", "height", "has_prev", "tiles_x", "tiles_y",
                     "lights", "n_lights", "ambient", "view_matrix", "camera_params", "tan_x", "tan_y",
-                    "srgb_encode", "particle_systems", "time", "sun", "shadow_lights", "scene_bounds", "camera"}
+                    "srgb_encode", "particle_systems", "time", "sun", "shadow_lights", "scene_bounds", "camera",
+                    "n_transparent_tris"}
         for p in self.passes:
             missing = set(p.inputs) - produced
             if missing:
                 raise RuntimeError(f"pass {p.name} reads {sorted(missing)} before any pass writes it")
             produced |= set(p.outputs)
 
-    def resize(self, width, height):
+    def resize(self, width, height, transparent: bool = False):
         if self.size != (width, height):
             for p in self.passes:
-                p.allocate(width, height)
+                if p not in self.transparency:
+                    p.allocate(width, height)
             self.size = (width, height)
+        if transparent and self.transparency_size != (width, height):
+            for p in self.transparency:
+                p.allocate(width, height)
+            self.transparency_size = (width, height)
 
     def _set_camera(self, camera, width, height, prev_camera):
         """Upload the camera matrices; returns the scalar camera values passes read."""
@@ -77,18 +95,22 @@ class Pipeline:
 
     def render(self, scene_res: Resources, camera, width, height, prev_camera=None, time=0.0):
         """Run every pass; returns (outputs: dict of host arrays, stats dict)."""
-        self.resize(width, height)
+        transparent = bool(self.transparency) and scene_res["n_transparent_tris"] > 0
+        self.resize(width, height, transparent)
         res = Resources(buffers=dict(scene_res.buffers), values=dict(scene_res.values))
         res.buffers.update(self.matrices)
         res.buffers.update(self.constants)
         res.values.update(self._set_camera(camera, width, height, prev_camera), time=float(time), camera=camera)
         for p in self.passes:
-            p.prepare_scene(scene_res)
+            if transparent or p not in self.transparency:
+                p.prepare_scene(scene_res)
 
         retries = 0
         while True:
             timings = []
             for p in self.passes:
+                if p in self.transparency and not transparent:
+                    continue                        # no BLEND triangle: no buffer, no kernel
                 p.publish(res)
                 if p.name == "particles" and not res["particle_systems"]:
                     continue                        # no particles: no kernel
@@ -116,6 +138,10 @@ class Pipeline:
             "fragment_count": np.zeros((height, width), np.int32),
             "transmittance": np.ones((height, width), np.float32),
         }
+        if transparent:
+            outputs["fragment_count"] = self.transparency[0].frag_count.get(queue=self.queue).reshape(height, width)
+            layers = res["layers"].get(queue=self.queue)
+            outputs["transmittance"] = layers[3 * width * height: 4 * width * height].reshape(height, width)
         stats = {f"{name}_ms": (end.profile.end - start.profile.start) * 1e-6 for name, start, end in timings}
         stats["total_ms"] = sum(stats.values())
         stats.update(self.passes[0].triangle_stats())
@@ -123,6 +149,7 @@ class Pipeline:
         stats["tile_entries"] = int(self.passes[1].total.get(queue=self.queue)[0])
         stats["tile_size"] = self.config.tile_size
         stats["retries"] = retries
+        stats.update(self._fragment_stats(outputs["fragment_count"], transparent))
         if self.shadow is not None and res["shadow_view_count"]:
             stats.update(self.shadow.pass_stats())     # breakdown of shadow_ms, not added to total_ms
         stats["lights"] = res["n_lights"]
@@ -131,6 +158,17 @@ class Pipeline:
         else:
             stats.update(lights_per_tile_avg=float(res["n_lights"]), lights_per_tile_max=res["n_lights"])
         return outputs, stats
+
+    def _fragment_stats(self, counts, transparent) -> dict:
+        """Transparent fragments: total, per-pixel max, and those max_fragments_per_pixel dropped."""
+        if not transparent:
+            return {"fragments": 0, "fragments_max": 0, "fragments_dropped": 0}
+        total = int(counts.sum(dtype=np.int64))
+        cap = self.config.max_fragments_per_pixel
+        kept = int(np.minimum(counts, cap).sum(dtype=np.int64)) if cap and self.config.transparency == "abuffer" \
+            else total
+        return {"fragments": total, "fragments_max": int(counts.max()) if counts.size else 0,
+                "fragments_dropped": total - kept}
 
     def _shadow_planes(self, res, width, height) -> np.ndarray:
         """Frame.shadow: (H, W, K) visibility, K = shadow planes (0 without shadows)."""

@@ -342,6 +342,7 @@ class Scene:
             "textures": len(self.textures),
             "texture_sizes": [list(t.rgba.shape[1::-1]) for t in self.textures],
             "alpha_masked_materials": sum(m.alpha_mode == "MASK" for m in self.materials),
+            "transparent_materials": sum(m.alpha_mode == "BLEND" for m in self.materials),
             "single_sided_materials": sum(not m.double_sided for m in self.materials),
             "bounds_min": lo.tolist(),
             "bounds_max": hi.tolist(),

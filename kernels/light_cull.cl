@@ -6,6 +6,7 @@
  *     multiple of VEC with radius -1 (never hits).
  *  2. `tile_depth_bounds`: one work-item per LTILE×LTILE tile: min/max view depth of its
  *     foreground pixels from the G-buffer (+inf/-inf for an empty tile: no light touches it),
+ *     widened by the transparent fragments' depth range (fragments.cl) when there are any,
  *     and with DEPTH_MASK Harada's 2.5D culling mask: which of 32 slices of [min, max] hold a
  *     pixel, so a light floating in the empty gap of a depth discontinuity is rejected.
  *  3. `light_cull_count` / `light_cull_fill`: one work-item per tile tests every light, VEC
@@ -15,6 +16,7 @@
  *     buffer grows when the total says it must.
  *
  * Buffers: lights Light[n]; view float[16] world->view row-major; gbuffer uint[GB_PLANES][H·W];
+ *          t_range float[2][H·W] (nearest, farthest transparent fragment, linear; read if has_fragments);
  *          sphere_x/y/z/r float[n_padded]; tile_depth float4[tiles] (min, max, mask bits, 0);
  *          tile_light_counts/offsets int[tiles]; tile_lights int[list_capacity].
  * Work-groups: 1-D, any size; no barriers, no local memory.
@@ -63,18 +65,25 @@ kernel void light_view_bounds(global const Light* lights, int n_lights, int n_pa
 }
 
 kernel void tile_depth_bounds(global const uint* gbuffer, int width, int height, float far,
-                              int tiles_x, int tiles_y, global float4* tile_depth)
+                              int tiles_x, int tiles_y, int has_fragments, global const float* t_range,
+                              global float4* tile_depth)
 {
     int t = get_global_id(0);
     if (t >= tiles_x * tiles_y) return;
     int x0 = (t % tiles_x) * LTILE, y0 = (t / tiles_x) * LTILE;
     int x1 = min(x0 + LTILE, width), y1 = min(y0 + LTILE, height);
     global const float* depth = (global const float*)(gbuffer + GB_LINEAR_DEPTH_PLANE * width * height);
+    global const float* t_near = t_range;
+    global const float* t_far = t_range + width * height;
     float lo = INFINITY, hi = -INFINITY;
     for (int y = y0; y < y1; ++y)
         for (int x = x0; x < x1; ++x) {
             float z = depth[y * width + x];
             if (z < INFINITY) { lo = fmin(lo, z); hi = fmax(hi, z); }
+            if (has_fragments) {          /* transparent fragments in front (fragments.cl) */
+                lo = fmin(lo, t_near[y * width + x]);
+                hi = fmax(hi, t_far[y * width + x]);
+            }
         }
     uint mask = 0xffffffffu;
 #if DEPTH_MASK
@@ -84,6 +93,12 @@ kernel void tile_depth_bounds(global const uint* gbuffer, int width, int height,
         for (int x = x0; x < x1; ++x) {
             float z = depth[y * width + x];
             if (z < INFINITY) mask |= 1u << min((int)((z - lo) * scale), 31);
+            if (has_fragments && t_near[y * width + x] < INFINITY) {
+                /* every slice between the pixel's nearest and farthest fragment: conservative */
+                int s0 = min((int)((t_near[y * width + x] - lo) * scale), 31);
+                int s1 = min((int)((t_far[y * width + x] - lo) * scale), 31);
+                mask |= (0xffffffffu >> (31 - s1)) & ~((1u << s0) - 1u);
+            }
         }
 #endif
     tile_depth[t] = (float4)(lo * far, hi * far, as_float(mask), 0.0f);

@@ -8,7 +8,8 @@
  * at its pixel centers with the top-left rule (32-bit lanes wherever the values fit, else
  * exact doubles on CPUs or 64-bit integers), computes the perspective-correct view depth,
  * and keeps the nearest fragment (ties: lower triangle id, then lower prim index). Alpha-masked prims
- * sample their base-color alpha only for lanes they would win. No barriers, no local memory.
+ * sample their base-color alpha only for lanes they would win (screen-door BLEND prims compare it
+ * with an ordered-dither threshold instead of the cutoff). No barriers, no local memory.
  *
  * Buffers: prims Prim[*]; tile_offsets/tile_counts int[tiles]; tile_prims int[list_capacity];
  *          scene uvs float[2V], triangles int[3T], materials Material[M]; textures (texture.h).
@@ -25,11 +26,19 @@
 #define TILE 16
 #endif
 #include "vec.h"
+#include "coverage.h"
 
-/* Prims whose bounding box is at most SMALL_EXTENT (24.8 units) on both axes have exact
- * 32-bit edge functions on any run inside their tile range: |d| < 2^14, |offset| < 2^15.
- * That common case needs no 64-bit arithmetic at all (scalar 64-bit math is slow on GPUs). */
-#define SMALL_EXTENT (64 * 256)
+
+/* Screen-door transparency (docs/transparency.md): a BLEND fragment is kept where its alpha
+ * reaches the 4x4 Bayer threshold (b + 0.5) / 16 of its pixel: 17 opacity levels. The pattern
+ * is shifted per material so overlapping layers of two materials keep different pixels. */
+constant uchar BAYER4[16] = { 0, 8, 2, 10, 12, 4, 14, 6, 3, 11, 1, 9, 15, 7, 13, 5 };
+
+static inline float screen_door_threshold(int px, int py, int material)
+{
+    const int k = (5 * material) & 15;
+    return ((float)BAYER4[((py + (k >> 2)) & 3) * 4 + ((px + (k & 3)) & 3)] + 0.5f) * (1.0f / 16.0f);
+}
 
 kernel __attribute__((reqd_work_group_size(TILE / VEC, TILE, 1)))
 void raster_tiles(global const Prim* prims, global const int* tile_offsets, global const int* tile_counts,
@@ -43,7 +52,6 @@ void raster_tiles(global const Prim* prims, global const int* tile_offsets, glob
     const int px0 = get_global_id(0) * VEC, py = get_global_id(1);
     const int tile = get_group_id(1) * tiles_x + get_group_id(0);
     const int sx0 = px0 * 256 + 128, sy = py * 256 + 128;     /* first sample of the run */
-    const int sx_last = sx0 + (VEC - 1) * 256;
     const Textures tx = { texels, srgb_lut, tex_infos, tex_levels };
 
     floatV best_depth = (floatV)INFINITY;
@@ -53,65 +61,9 @@ void raster_tiles(global const Prim* prims, global const int* tile_offsets, glob
     for (int i = start; i < end; ++i) {
         const int pi = tile_prims[i];
         const Prim p = prims[pi];
-        const int min_x = min(min(p.x[0], p.x[1]), p.x[2]), max_x = max(max(p.x[0], p.x[1]), p.x[2]);
-        const int min_y = min(min(p.y[0], p.y[1]), p.y[2]), max_y = max(max(p.y[0], p.y[1]), p.y[2]);
-        if (sy < min_y || sy > max_y || sx_last < min_x || sx0 > max_x) continue;
-
-        /* E_k(lane) = base_k + step_k · lane; inside when E_k > thr_k (top-left: thr = -1). */
-        intV inside_i;
-        floatV e_f[3];
-        if (max_x - min_x <= SMALL_EXTENT && max_y - min_y <= SMALL_EXTENT) {
-            intV ok = (intV)(-1);
-            for (int k = 0; k < 3; ++k) {
-                int k1 = (k + 1) % 3;
-                int dx = p.x[k1] - p.x[k], dy = p.y[k1] - p.y[k];
-                int base = dx * (sy - p.y[k]) - dy * (sx0 - p.x[k]);
-                intV e = (intV)base + (intV)(-dy * 256) * LANES;
-                int thr = ((dy == 0 && dx > 0) || dy < 0) ? -1 : 0;
-                ok &= e > (intV)thr;
-                e_f[k] = convert_floatV(e);
-            }
-            inside_i = ok;
-        } else {
-            /* Large prim: exact 64-bit edge values at the run's ends, then per edge 32-bit lanes
-             * whenever both ends fit (E is linear in the lane, so every lane does; the wrapping
-             * uint arithmetic is exact) -- 64-bit lanes, whose compare and float conversion
-             * CPUs without AVX-512 emulate, only for runs far from a long edge. */
-            inside_i = (intV)(-1);
-            for (int k = 0; k < 3; ++k) {
-                int k1 = (k + 1) % 3;
-                long dx = p.x[k1] - p.x[k], dy = p.y[k1] - p.y[k];
-                long base = dx * (long)(sy - p.y[k]) - dy * (long)(sx0 - p.x[k]);
-                long step = -dy * 256, last = base + step * (VEC - 1);
-                int thr = ((dy == 0 && dx > 0) || dy < 0) ? -1 : 0;
-                if (min(base, last) >= INT_MIN && max(base, last) <= INT_MAX) {
-                    intV e = as_intV((uintV)(uint)base + (uintV)(uint)step * as_uintV(LANES));
-                    inside_i &= e > (intV)thr;
-                    e_f[k] = convert_floatV(e);
-                }
-#if RASTER_FP64
-                else if (max(base, last) < (1L << 52) && min(base, last) > -(1L << 52)) {
-                    /* base, step·lane and their sum are integers below 2^53: exact doubles */
-                    doubleV e = (doubleV)((double)base) + (doubleV)((double)step) * CONVERT_V(LANES, doubleV);
-                    inside_i &= CONVERT_V(e > (doubleV)thr, intV);
-                    e_f[k] = CONVERT_V(e, floatV);
-                }
-#endif
-                else {
-                    longV e = (longV)base + (longV)step * CONVERT_V(LANES, longV);
-                    inside_i &= CONVERT_V(e > (longV)thr, intV);
-                    e_f[k] = CONVERT_V(e, floatV);
-                }
-            }
-        }
+        floatV depth;
+        const intV inside_i = prim_cover_run(&p, sx0, sy, &depth);
         if (!ANY(inside_i)) continue;
-
-        floatV num = (e_f[1] * (floatV)p.inv_w[0] + e_f[2] * (floatV)p.inv_w[1]) + e_f[0] * (floatV)p.inv_w[2];
-#if ORTHO
-        floatV depth = num / (floatV)((float)p.area);
-#else
-        floatV depth = (floatV)((float)p.area) / num;
-#endif
         intV wins = inside_i & (depth <= (floatV)far) &
                     ((depth < best_depth) |
                      ((depth == best_depth) & (((intV)p.tri < best_tri) |
@@ -120,8 +72,10 @@ void raster_tiles(global const Prim* prims, global const int* tile_offsets, glob
         if (p.flags & PRIM_MASKED) {
             const Material m = materials[p.material];
             for (int l = 0; l < VEC; ++l) {
+                const float cutoff = (p.flags & PRIM_DITHER) ? screen_door_threshold(px0 + l, py, p.material)
+                                                             : m.alpha_cutoff;
                 if (LANE_I(wins, l) && px0 + l < width &&
-                    surface_base_color(&p, px0 + l, py, m, uvs, triangles, tx).w < m.alpha_cutoff)
+                    surface_base_color(&p, px0 + l, py, m, uvs, triangles, tx).w < cutoff)
                     LANE_I(wins, l) = 0;
             }
         }

@@ -9,6 +9,11 @@
  * the first prim per triangle; a prefix sum turns counts into offsets; `setup_emit` copies the
  * staged prim of single-prim triangles and recomputes only the rare multi-prim (clipped) ones.
  *
+ * Which triangles (`select`, docs/transparency.md): SELECT_ALL (shadow maps), SELECT_OPAQUE
+ * (the camera with A-buffer or depth peeling: BLEND triangles get STATUS_TRANSPARENT and no
+ * prim), SELECT_BLEND (the transparency pass: only BLEND triangles), SELECT_DITHER (screen
+ * door: every triangle; BLEND prims are flagged PRIM_MASKED | PRIM_DITHER for raster.cl).
+ *
  * Buffers: positions float[3V] world space; triangles int[3T]; tri_material int[T];
  *          materials Material[M]; view_proj float[16] row-major.
  *          out: prim_count int[T], status uchar[T] (STATUS_*), staged Prim[T], prims Prim[capacity].
@@ -39,6 +44,10 @@
 #define SIDE_TOP (1 << 7)
 #define SIDE_BOTTOM (1 << 8)
 #define ALL_PLANES 511
+#define SELECT_ALL 0
+#define SELECT_OPAQUE 1
+#define SELECT_BLEND 2
+#define SELECT_DITHER 3
 #define MAX_POLY 9               /* 3 vertices + one per clip plane (near + 4 guard planes) + 1 */
 
 typedef struct {
@@ -111,7 +120,7 @@ static int snap_y(float ndc, float size)
 static int floor_div256(int v) { return v >> 8; }   /* arithmetic shift = floor for negatives */
 
 /* Builds prim `k` of the fan into *p; returns its status (STATUS_EMITTED when kept). */
-static int make_prim(const ClipVert* poly, int k, int tri, int material, uint mat_flags,
+static int make_prim(const ClipVert* poly, int k, int tri, int material, uint mat_flags, int select,
                      int width, int height, Prim* p)
 {
     const ClipVert* v[3] = { &poly[0], &poly[k + 1], &poly[k + 2] };
@@ -131,6 +140,7 @@ static int make_prim(const ClipVert* poly, int k, int tri, int material, uint ma
               - (long)(p->x[2] - p->x[0]) * (long)(p->y[1] - p->y[0]);
     if (area == 0) return STATUS_DEGENERATE;
     p->flags = (mat_flags & MAT_MASK) ? PRIM_MASKED : 0u;
+    if ((mat_flags & MAT_BLEND) && select == SELECT_DITHER) p->flags = PRIM_MASKED | PRIM_DITHER;
     if (area > 0) {                       /* clockwise in NDC: a back face */
         if (!(mat_flags & MAT_DOUBLE_SIDED)) return STATUS_BACKFACE;
         p->flags |= PRIM_BACKFACE;
@@ -158,9 +168,15 @@ static int make_prim(const ClipVert* poly, int k, int tri, int material, uint ma
 /* Runs the whole setup of triangle `t`; writes up to `room` prims to dst (when non-null). */
 static int setup_triangle(int t, global const float* positions, global const int* triangles,
                           global const int* tri_material, global const Material* materials,
-                          global const float* view_proj, int width, int height, float near,
+                          global const float* view_proj, int width, int height, float near, int select,
                           global Prim* dst, int room, uchar* status)
 {
+    const int material = tri_material[t];
+    const uint mat_flags = materials[material].flags;
+    if ((select == SELECT_OPAQUE && (mat_flags & MAT_BLEND)) || (select == SELECT_BLEND && !(mat_flags & MAT_BLEND))) {
+        *status = STATUS_TRANSPARENT;      /* the other geometry pass's triangle */
+        return 0;
+    }
     ClipVert poly_a[MAX_POLY], poly_b[MAX_POLY];
     const float gx = GUARD_PIXELS * 2.0f / (float)width, gy = GUARD_PIXELS * 2.0f / (float)height;
     int outside = 0, all_outside = ALL_PLANES;
@@ -195,12 +211,10 @@ static int setup_triangle(int t, global const float* positions, global const int
         }
         if (n < 3) { *status = (outside & 1) ? STATUS_CULLED_NEAR : STATUS_OFFSCREEN; return 0; }
     }
-    int material = tri_material[t];
-    uint mat_flags = materials[material].flags;
     int emitted = 0, last = STATUS_DEGENERATE;
     for (int k = 0; k + 2 < n; ++k) {
         Prim p;
-        last = make_prim(poly, k, t, material, mat_flags, width, height, &p);
+        last = make_prim(poly, k, t, material, mat_flags, select, width, height, &p);
         if (last != STATUS_EMITTED) continue;
         if (dst && emitted < room) dst[emitted] = p;
         ++emitted;
@@ -212,20 +226,20 @@ static int setup_triangle(int t, global const float* positions, global const int
 kernel void setup_count(global const float* positions, global const int* triangles,
                         global const int* tri_material, global const Material* materials,
                         global const float* view_proj, int n_tris, int width, int height, float near,
-                        global int* prim_count, global uchar* status, global Prim* staged)
+                        int select, global int* prim_count, global uchar* status, global Prim* staged)
 {
     int t = get_global_id(0);
     if (t >= n_tris) return;
     uchar s;
     prim_count[t] = setup_triangle(t, positions, triangles, tri_material, materials, view_proj,
-                                   width, height, near, staged + t, 1, &s);
+                                   width, height, near, select, staged + t, 1, &s);
     status[t] = s;
 }
 
 kernel void setup_emit(global const float* positions, global const int* triangles,
                        global const int* tri_material, global const Material* materials,
                        global const float* view_proj, int n_tris, int width, int height, float near,
-                       global const int* prim_offset, global const int* prim_count,
+                       int select, global const int* prim_offset, global const int* prim_count,
                        global const Prim* staged, int capacity, global Prim* prims)
 {
     int t = get_global_id(0);
@@ -239,5 +253,5 @@ kernel void setup_emit(global const float* positions, global const int* triangle
     }
     uchar s;
     setup_triangle(t, positions, triangles, tri_material, materials, view_proj,
-                   width, height, near, prims + offset, room, &s);
+                   width, height, near, select, prims + offset, room, &s);
 }

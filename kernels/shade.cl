@@ -35,26 +35,10 @@
 #ifndef LTILE
 #define LTILE 16
 #endif
-#ifndef BRUTE_FORCE
-#define BRUTE_FORCE 0
-#endif
 #ifndef SSAO
 #define SSAO 0
 #endif
-#ifndef SHADOWS
-#define SHADOWS 0
-#endif
-#include "shadow.h"
-
-/* Stores the run's `valid` lanes of v into a float plane at pixel p0. */
-static inline void store_plane(global float* plane, int p0, int valid, floatV v)
-{
-    if (valid == VEC) {
-        vstoreV(v, 0, plane + p0);
-        return;
-    }
-    for (int l = 0; l < valid; ++l) plane[p0 + l] = LANE_F(v, l);
-}
+#include "lighting.h"
 
 kernel __attribute__((reqd_work_group_size(LTILE / VEC, LTILE, 1)))
 void shade(global const uint* gbuffer, int width, int height, float far, global const float* camera,
@@ -111,78 +95,15 @@ void shade(global const uint* gbuffer, int width, int height, float far, global 
     const int count = max(min(tile_light_counts[tile], list_capacity - first), 0);
 #endif
 #if SHADOWS
-    const ShadowParams sp = { shadow_atlas, atlas_stride, shadow_bias, shadow_slope_bias, shadow_normal_offset };
-#endif
-    if (ANY(fg)) {
-        for (int k = 0; k < count; ++k) {
-#if BRUTE_FORCE
-            const Light lt = lights[k];
+    const LightEnv env = { lights, tile_lights, has_sun, sun,
+                           { shadow_atlas, atlas_stride, shadow_bias, shadow_slope_bias, shadow_normal_offset },
+                           shadow_views, sun_cascades, spot_view0, spot_plane0 };
 #else
-            const Light lt = lights[tile_lights[first + k]];
+    const LightEnv env = { lights, tile_lights, has_sun, sun };
 #endif
-            floatV lx = lt.position[0] - px, ly = lt.position[1] - py_, lz = lt.position[2] - pz;
-            floatV d2 = lx * lx + ly * ly + lz * lz;
-            float r2 = lt.radius * lt.radius;
-            intV near_enough = fg & (d2 < r2);
-            if (!ANY(near_enough)) continue;
-            floatV q = 1.0f - d2 / r2;
-            floatV atten = select((floatV)0.0f, q * q * q, near_enough);
-            floatV inv_l = rsqrt(fmax(d2, 1e-30f));
-            lx *= inv_l; ly *= inv_l; lz *= inv_l;
-            if (lt.type == LIGHT_SPOT) {
-                floatV cos_a = -(lx * lt.direction[0] + ly * lt.direction[1] + lz * lt.direction[2]);
-                floatV s = clamp((cos_a - lt.cos_outer) / fmax(lt.cos_inner - lt.cos_outer, 1e-4f), 0.0f, 1.0f);
-                atten *= s * s;
-            }
-            floatV ndotl = nx * lx + ny * ly + nz * lz;
-#if SHADOWS
-            if (lt.shadow >= 0) {              /* a shadowed spot: only where it lights */
-                intV lit = fg & (atten > 0.0f);
-                floatV vis = 1.0f;
-                if (ANY(lit)) {
-                    vis = shadow_visibility(&sp, shadow_views + spot_view0 + lt.shadow, px, py_, pz,
-                                            nx, ny, nz, ndotl, px0 + LANES, py);
-                    atten *= vis;
-                }
-                store_plane(shadow_out + (spot_plane0 + lt.shadow) * npix, p0, valid, select((floatV)1.0f, vis, lit));
-            }
-#endif
-            floatV hx = lx + vx, hy = ly + vy, hz = lz + vz;
-            floatV inv_h = rsqrt(fmax(hx * hx + hy * hy + hz * hz, 1e-30f));
-            floatV ndoth = fmax((nx * hx + ny * hy + nz * hz) * inv_h, 0.0f);
-            floatV spec = select((floatV)0.0f, spec_i * powr(ndoth, spec_p), ndotl > 0.0f);
-            floatV diff = atten * fmax(ndotl, 0.0f);
-            spec *= atten;
-            dr += diff * lt.color[0]; dg += diff * lt.color[1]; db += diff * lt.color[2];
-            sr += spec * lt.color[0]; sg += spec * lt.color[1]; sb += spec * lt.color[2];
-        }
-        if (has_sun) {                         /* the sun: every foreground pixel, no falloff */
-            const float lx = -sun[0], ly = -sun[1], lz = -sun[2];
-            floatV ndotl = nx * lx + ny * ly + nz * lz;
-            floatV vis = 1.0f;
-#if SHADOWS
-            if (sun_cascades > 0) {
-                intV cascade = 0;
-                for (int c = 0; c + 1 < sun_cascades; ++c)
-                    cascade += select((intV)0, (intV)1, depth > shadow_views[c].split);
-                for (int c = 0; c < sun_cascades; ++c) {
-                    intV mine = fg & (cascade == c);
-                    if (ANY(mine))
-                        vis = select(vis, shadow_visibility(&sp, shadow_views + c, px, py_, pz, nx, ny, nz, ndotl,
-                                                            px0 + LANES, py), mine);
-                }
-                store_plane(shadow_out, p0, valid, select((floatV)1.0f, vis, fg));
-            }
-#endif
-            floatV hx = lx + vx, hy = ly + vy, hz = lz + vz;
-            floatV inv_h = rsqrt(fmax(hx * hx + hy * hy + hz * hz, 1e-30f));
-            floatV ndoth = fmax((nx * hx + ny * hy + nz * hz) * inv_h, 0.0f);
-            floatV spec = select((floatV)0.0f, vis * spec_i * powr(ndoth, spec_p), ndotl > 0.0f);
-            floatV diff = vis * fmax(ndotl, 0.0f);
-            dr += diff * sun[3]; dg += diff * sun[4]; db += diff * sun[5];
-            sr += spec * sun[3]; sg += spec * sun[4]; sb += spec * sun[5];
-        }
-    }
+    if (ANY(fg))
+        accumulate_lights(&env, first, count, fg, px, py_, pz, nx, ny, nz, vx, vy, vz, spec_i, spec_p, depth,
+                          px0 + LANES, py, shadow_out, p0, valid, npix, &dr, &dg, &db, &sr, &sg, &sb);
 #if SSAO
     floatV ambient_ao = ambient * as_floatV(load_plane((global const uint*)ao, p0, valid, 0u));
 #else

@@ -449,6 +449,81 @@ def test_unknown_material_keys_warn(tmp_path):
         clrender.load_scene(tiny_gltf(tmp_path / "a.gltf", material={"alphaMode": "SOMETIMES"}))
 
 
+@pytest.mark.parametrize("kw, words", [
+    ({"opacity": float("nan")}, ["opacity", "nan"]),
+    ({"opacity": 1.5}, ["opacity", "1.5"]),
+    ({"opacity": -0.1}, ["opacity", "-0.1"]),
+    ({"opacity": float("inf")}, ["opacity", "inf"]),
+    ({"opacity": "0.5"}, ["opacity", "'0.5'"]),
+    ({"refraction": -1.0}, ["refraction", "-1"]),
+    ({"refraction": float("nan")}, ["refraction", "nan"]),
+    ({"alpha_mode": "MASK", "opacity": 0.5}, ["MASK", "opacity"]),
+])
+def test_bad_material_transparency_values(kw, words):
+    """Opacity outside [0, 1] or NaN, a negative refraction, or MASK with opacity < 1: a SceneError
+    naming the material and the field (docs/transparency.md)."""
+    with pytest.raises(SceneError) as info:
+        clrender.Material(name="glass_pane", **kw)
+    msg = str(info.value)
+    assert "glass_pane" in msg, msg
+    for w in words:
+        assert w in msg, msg
+
+
+def test_material_opacity_makes_opaque_blend():
+    """The documented safe results next to the errors above: opacity < 1 turns OPAQUE into BLEND,
+    opacity 1 changes nothing, and the bounds 0 and 1 are accepted."""
+    assert clrender.Material(name="m", opacity=0.5).alpha_mode == "BLEND"
+    assert clrender.Material(name="m", opacity=0.0).alpha_mode == "BLEND"
+    assert clrender.Material(name="m", opacity=1.0).alpha_mode == "OPAQUE"
+    assert clrender.Material(name="m", alpha_mode="MASK", opacity=1.0).alpha_mode == "MASK"
+    assert clrender.Material(name="m", refraction=0.0).refraction == 0.0
+
+
+@pytest.mark.parametrize("value, words", [
+    ("1.5", ["mesh[0].opacity", "1.5"]),
+    ("-0.1", ["mesh[0].opacity", "-0.1"]),
+    ("nan", ["mesh[0].opacity", "nan"]),
+    ('"half"', ["mesh[0].opacity", "'half'"]),
+])
+def test_toml_bad_mesh_opacity(tmp_path, value, words):
+    (tmp_path / "t.obj").write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
+    path = tmp_path / "s.toml"
+    path.write_text(f'[[mesh]]\npath = "t.obj"\nopacity = {value}\n')
+    assert_scene_error(path, words)
+
+
+@pytest.mark.parametrize("line, words", [
+    ("opacity = 1.5", ["'leaf'", "opacity", "1.5"]),
+    ("opacity = nan", ["'leaf'", "opacity", "nan"]),
+    ('opacity = "0.5"', ["'leaf'", "opacity", "'0.5'"]),
+    ("refraction = -1", ["'leaf'", "refraction", "-1"]),
+    ('alpha_mode = "GLASS"', ["'leaf'", "alpha_mode", "GLASS"]),
+    ("alpha_cutoff = 2", ["'leaf'", "alpha_cutoff", "2"]),
+])
+def test_toml_bad_material_override_values(tmp_path, line, words):
+    """[[material]] values are checked before any mesh file is read: the message names the file and
+    the material the table is for."""
+    path = tmp_path / "s.toml"
+    path.write_text(f'[[mesh]]\npath = "never_read.obj"\n[[material]]\nname = "leaf"\n{line}\n')
+    msg = assert_scene_error(path, words)
+    assert "not found" not in msg, msg
+
+
+def test_toml_mask_material_with_mesh_opacity(tmp_path):
+    """A mesh opacity < 1 over a MASK material is the Material rule's error, naming the file and the
+    material (a [[material]] table making it BLEND is the way out)."""
+    (tmp_path / "m.mtl").write_text("newmtl leaf\nKd 0 1 0\n")
+    (tmp_path / "m.obj").write_text("mtllib m.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl leaf\nf 1 2 3\n")
+    path = tmp_path / "s.toml"
+    head = '[[mesh]]\npath = "m.obj"\nopacity = 0.5\n[[material]]\nname = "leaf"\n'
+    path.write_text(head + 'alpha_mode = "MASK"\n')
+    assert_scene_error(path, ["'leaf'", "MASK", "opacity"])
+    path.write_text(head + 'alpha_mode = "BLEND"\n')
+    m = clrender.load_scene(path).materials[0]
+    assert (m.name, m.alpha_mode, m.opacity) == ("leaf", "BLEND", 0.5)
+
+
 def test_unknown_option_names_are_errors(device):
     with pytest.raises(ValueError, match=r"tile_sise.*known.*'tile_size'"):
         clrender.Renderer(16, 16, device=device.id, tile_sise=8)

@@ -211,6 +211,59 @@ def test_render_size_from_scene_settings(quad, tmp_path, device, capsys):
     assert iio.imread(out).shape[:2] == (15, 20)
 
 
+@needs_loaders
+def test_transparency_options_reach_the_config(quad, tmp_path, device, capsys, monkeypatch):
+    """--transparency/--peel-layers/--max-fragments-per-pixel/--refraction become the RenderConfig
+    fields of the same names; without them the config keeps its defaults."""
+    from clrender import renderer as renderer_module
+
+    seen = []
+
+    class Recording(renderer_module.Renderer):
+        def __init__(self, *args, **kwargs):
+            super().__init__(*args, **kwargs)
+            seen.append(self.config)
+
+    monkeypatch.setattr(renderer_module, "Renderer", Recording)
+    common = [str(quad), "--width", "16", "--height", "12", "--device", device.id, "-q", *CAMERA_ARGS]
+    assert cli.main(["render", *common, "-o", str(tmp_path / "a.png"), "--transparency", "depth_peeling",
+                     "--peel-layers", "8", "--max-fragments-per-pixel", "3", "--refraction"]) == 0, \
+        capsys.readouterr().err
+    assert cli.main(["render", *common, "-o", str(tmp_path / "b.png"), "--transparency", "screen_door",
+                     "--max-fragments-per-pixel", "0"]) == 0, capsys.readouterr().err
+    assert cli.main(["render", *common, "-o", str(tmp_path / "c.png")]) == 0, capsys.readouterr().err
+    assert len(seen) == 3
+    fields = lambda c: (c.transparency, c.peel_layers, c.max_fragments_per_pixel, c.refraction)  # noqa: E731
+    assert fields(seen[0]) == ("depth_peeling", 8, 3, True)
+    assert fields(seen[1]) == ("screen_door", 4, 0, False)
+    default = renderer_module.RenderConfig()
+    assert fields(seen[2]) == fields(default) == ("abuffer", 4, 0, False)
+
+
+@needs_loaders
+def test_render_fragment_count_and_transmittance_aovs(quad, tmp_path, device, capsys):
+    """--aov fragment_count,transmittance: .npy with the Frame's dtypes and (H, W) shape, .png
+    previews, .exr for the float one only (when a writer is installed). The quad is opaque, so
+    there are no fragments: count 0 and transmittance 1 everywhere (docs/transparency.md)."""
+    import imageio.v3 as iio
+
+    out = tmp_path / "t.png"
+    rc = cli.main(["render", str(quad), "-o", str(out), "--width", str(W), "--height", str(H),
+                   "--device", device.id, "--aov", "fragment_count,transmittance", "-q", *CAMERA_ARGS])
+    assert rc == 0, capsys.readouterr().err
+    count = np.load(tmp_path / "t.fragment_count.npy")
+    trans = np.load(tmp_path / "t.transmittance.npy")
+    assert (count.dtype, count.shape) == (np.int32, (H, W))
+    assert (trans.dtype, trans.shape) == (np.float32, (H, W))
+    assert (count == 0).all() and (trans == 1).all()
+    heat, grey = iio.imread(tmp_path / "t.fragment_count.png"), iio.imread(tmp_path / "t.transmittance.png")
+    assert heat.shape == (H, W, 3) and heat.dtype == np.uint8 and (heat == 0).all()
+    assert grey.shape == (H, W) and grey.dtype == np.uint8 and (grey == 255).all()
+    assert not (tmp_path / "t.fragment_count.exr").exists()
+    assert (tmp_path / "t.transmittance.exr").exists() == aov_io.exr_available()
+    assert "fragment_count" in aov_io.INT_AOVS and "transmittance" not in aov_io.INT_AOVS
+
+
 # -- errors -------------------------------------------------------------------------------------------
 def test_missing_scene_is_one_line(tmp_path, capsys):
     missing = tmp_path / "missing.obj"
@@ -244,6 +297,24 @@ def test_unknown_aov_is_an_error(quad, tmp_path, capsys):
 def test_bad_option_values(quad, tmp_path, capsys, option):
     assert cli.main(["render", str(quad), "-o", str(tmp_path / "x.png"), *option]) != 0
     assert option[0] in _error_line(capsys)
+
+
+def test_bad_transparency_values_are_one_line(quad, tmp_path, capsys):
+    base = ["render", str(quad), "-o", str(tmp_path / "x.png")]
+    assert cli.main([*base, "--transparency", "glass"]) == 2
+    line = _error_line(capsys)
+    assert "--transparency" in line and "'glass'" in line
+    assert all(v in line for v in ("abuffer", "depth_peeling", "screen_door")), line
+    for option, words in ((["--peel-layers", "65"], ["64", "65"]), (["--peel-layers", "0"], ["'0'"]),
+                          (["--peel-layers", "two"], ["'two'"]),
+                          (["--max-fragments-per-pixel", "-1"], ["'-1'", ">= 0"]),
+                          (["--max-fragments-per-pixel", "1.5"], ["'1.5'"])):
+        assert cli.main([*base, *option]) != 0
+        line = _error_line(capsys)
+        assert option[0] in line and all(w in line for w in words), line
+    assert cli.main([*base, "--refraction", "yes"]) == 2          # a flag takes no value
+    _error_line(capsys)
+    assert not (tmp_path / "x.png").exists()
 
 
 def test_bad_output_type(quad, tmp_path, capsys):
@@ -300,6 +371,25 @@ def test_info_json(quad, tmp_path, capsys):
     assert "triangles" in text and "fov 40 deg" in text
 
 
+@needs_loaders
+def test_info_counts_transparent_materials(quad, tmp_path, capsys):
+    """`info` reports BLEND materials next to the alpha-masked ones: here glass by a [[material]]
+    table (both meshes) and the second mesh's leaf by its opacity."""
+    quad.with_suffix(".mtl").write_text("newmtl glass\nKd 1 1 1\nnewmtl leaf\nKd 0 1 0\n")
+    quad.write_text("mtllib quad.mtl\nusemtl glass\n" + QUAD_OBJ.replace("f 1 3 4", "usemtl leaf\nf 1 3 4"))
+    assert cli.main(["info", str(quad), "--json"]) == 0
+    info = json.loads(capsys.readouterr().out)
+    assert (info["materials"], info["transparent_materials"], info["alpha_masked_materials"]) == (2, 0, 0)
+    toml = tmp_path / "scene.toml"
+    toml.write_text(f'[[mesh]]\npath = "{quad.name}"\n[[mesh]]\npath = "{quad.name}"\nopacity = 0.5\n'
+                    f'[[material]]\nname = "gl*"\nalpha_mode = "BLEND"\n')
+    assert cli.main(["info", str(toml), "--json"]) == 0
+    info = json.loads(capsys.readouterr().out)
+    assert (info["materials"], info["transparent_materials"], info["alpha_masked_materials"]) == (4, 3, 0)
+    assert cli.main(["info", str(toml)]) == 0
+    assert "4 (0 alpha-masked, 3 transparent, 0 single-sided)" in capsys.readouterr().out
+
+
 # -- previews (NumPy only) ----------------------------------------------------------------------------
 def test_previews():
     ids = np.array([[-1, 0, 1], [7, 7, -1]], np.int32)
@@ -321,6 +411,15 @@ def test_previews():
 
     normal = aov_io.preview("normal", np.array([[[0, 0, 1]] * 3] * 2, np.float32), bg)
     assert (normal[bg] == 0).all() and (normal[0, 1] == (128, 128, 255)).all()
+
+    counts = np.array([[0, 1, 2], [4, 4, 0]], np.int32)
+    heat = aov_io.preview("fragment_count", counts, bg)
+    assert heat.shape == (2, 3, 3) and heat.dtype == np.uint8
+    assert (heat[0, 0] == 0).all() and (heat[1, 0] == 255).all()            # none: black; the most: white
+    assert heat[0, 1].sum() < heat[0, 2].sum() < heat[1, 0].sum()
+    np.testing.assert_array_equal(heat, aov_io.preview("light_count", counts, bg))
+    trans = aov_io.preview("transmittance", np.array([[1, 0.5, 0], [0.25, 1, 1]], np.float32), bg)
+    assert trans.dtype == np.uint8 and trans.tolist() == [[255, 128, 0], [64, 255, 255]]
 
 
 @needs_loaders

@@ -14,6 +14,7 @@ import os
 import struct
 import sys
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -187,6 +188,51 @@ def test_khronos_cameras_perspective_used_orthographic_ignored():
         pytest.approx([0, 0, -1])
     assert cam.fov_y_deg == pytest.approx(math.degrees(0.7))
     assert (cam.near, cam.far) == pytest.approx((0.01, 100.0))
+
+
+def test_khronos_alpha_blend_mode_materials():
+    """AlphaBlendModeTest: the BLEND and MASK materials (mode, cutoff) reach the scene, each test
+    mesh uses its material, and the RGBA labels texture keeps its alpha channel (the device samples
+    texture alpha from it; the factor alpha is base_color[3], 1 here)."""
+    import imageio.v3 as iio
+
+    from clrender import structs
+    from clrender.scene_gpu import material_records
+
+    path = shared_file("khronos-AlphaBlendModeTest/AlphaBlendModeTest.gltf")
+    scene = load_scene(path)
+    raw = json.loads(path.read_text())
+    mats = {m.name: m for m in scene.materials}
+    assert set(mats) == {m["name"] for m in raw["materials"]}
+    expect = {"MatBed": ("OPAQUE", 0.5), "MatOpaque": ("OPAQUE", 0.5), "MatBlend": ("BLEND", 0.5),
+              "MatCutoff25": ("MASK", 0.25), "MatCutoff75": ("MASK", 0.75), "MatCutoffDefault": ("MASK", 0.5)}
+    for name, (mode, cutoff) in expect.items():
+        assert (mats[name].alpha_mode, mats[name].alpha_cutoff) == (mode, pytest.approx(cutoff)), name
+        assert mats[name].opacity == 1.0 and mats[name].base_color[3] == 1.0, name
+    # every mesh's triangles use the material the file gives it
+    for mesh_index, mesh_name in enumerate(scene.mesh_names):
+        node = mesh_name.split("/")[0]
+        gltf_mesh = next(m for m in raw["meshes"] if m["name"] == mesh_name.split("/")[1])
+        want = raw["materials"][gltf_mesh["primitives"][0]["material"]]["name"]
+        used = {scene.materials[i].name for i in np.unique(scene.triangle_material[scene.triangle_mesh == mesh_index])}
+        assert used == {want}, node
+    assert {n.split("/")[0] for n in scene.mesh_names} >= {"TestBlend", "DecalBlend", "TestCutoff25"}
+    # the labels texture, shared by the test materials, with its alpha channel as in the PNG
+    tex = scene.textures[mats["MatBlend"].base_color_texture]
+    png = iio.imread(path.parent / "AlphaBlendLabels.png")
+    assert png.shape[2] == 4
+    np.testing.assert_array_equal(tex.rgba, png)
+    assert tex.rgba[..., 3].min() == 0 and tex.rgba[..., 3].max() == 255
+    assert {mats[n].base_color_texture for n in expect if n != "MatBed"} == {mats["MatBlend"].base_color_texture}
+    # what the device gets: the BLEND / MASK flags and the factor alpha
+    records = material_records(scene)
+    for i, m in enumerate(scene.materials):
+        flags = int(records["flags"][i])
+        assert bool(flags & structs.MAT_BLEND) == (m.alpha_mode == "BLEND"), m.name
+        assert bool(flags & structs.MAT_MASK) == (m.alpha_mode == "MASK"), m.name
+        assert records["base_color"][i, 3] == 1.0
+    summary = scene.summary()
+    assert (summary["transparent_materials"], summary["alpha_masked_materials"]) == (1, 3)
 
 
 @pytest.mark.slow
@@ -585,6 +631,30 @@ def test_metallic_roughness_mapping(tmp_path):
     assert (scene.triangle_material == 2).all()
 
 
+def test_gltf_blend_factor_and_texture_alpha(tmp_path):
+    """glTF BLEND: the baseColorFactor alpha goes to base_color[3], the texture keeps its alpha
+    channel (sampled on the device), and a TOML opacity multiplies the alpha the device gets."""
+    from clrender.scene_gpu import material_records
+
+    rgba = np.zeros((2, 2, 4), np.uint8)
+    rgba[..., :3] = 255
+    rgba[..., 3] = [[0, 64], [128, 255]]
+    write_png(tmp_path / "a.png", rgba)
+    mats = [{"name": "glass", "alphaMode": "BLEND", "doubleSided": True,
+             "pbrMetallicRoughness": {"baseColorFactor": [1, 0.5, 0.25, 0.4], "baseColorTexture": {"index": 0}}}]
+    write_gltf(tmp_path / "g.gltf", uvs=np.zeros((4, 2), np.float32), materials=mats, prim_extra={"material": 0},
+               edit=lambda doc: doc.update(images=[{"uri": "a.png"}], textures=[{"source": 0}]))
+    scene = load_scene(tmp_path / "g.gltf")
+    m = scene.materials[0]
+    assert (m.alpha_mode, m.base_color, m.opacity) == ("BLEND", (1.0, 0.5, 0.25, 0.4), 1.0)
+    np.testing.assert_array_equal(scene.textures[m.base_color_texture].rgba, rgba)
+    assert material_records(scene)["base_color"][0, 3] == np.float32(0.4)
+    (tmp_path / "s.toml").write_text('[[mesh]]\npath = "g.gltf"\nopacity = 0.5\n')
+    toml = load_scene(tmp_path / "s.toml")
+    assert toml.materials[0].base_color == m.base_color and toml.materials[0].opacity == 0.5
+    assert material_records(toml)["base_color"][0, 3] == np.float32(0.4 * 0.5)
+
+
 def test_gltf_texture_sharing_and_wrap_modes(tmp_path):
     write_png(tmp_path / "img.png", np.arange(2 * 3 * 4, dtype=np.uint8).reshape(2, 3, 4))
 
@@ -788,6 +858,141 @@ def test_toml_camera_defaults_to_the_first_mesh_camera(tmp_path):
     cam = load_scene(tmp_path / "s.toml").camera
     assert cam.eye == pytest.approx((5, 0, 4)) and cam.target == pytest.approx((5, 0, 3))
     assert cam.far == pytest.approx(50)
+
+
+TRANSPARENT_OBJ = """\
+mtllib t.mtl
+v 0 0 0
+v 1 0 0
+v 0 1 0
+vt 0 0
+usemtl glass_curtain
+f 1/1 2/1 3/1
+usemtl red_curtain
+f 1/1 3/1 2/1
+usemtl wood
+f 2/1 3/1 1/1
+"""
+TRANSPARENT_MTL = """\
+newmtl glass_curtain
+Kd 0.5 0.5 1
+newmtl red_curtain
+Kd 1 0 0
+d 0.75
+newmtl wood
+Kd 0.5 0.25 0
+map_Kd wood.png
+"""
+
+
+def test_toml_opacity_refraction_and_material_overrides(tmp_path):
+    """[[mesh]] opacity multiplies every material of the mesh (< 1 -> BLEND) and refraction sets it;
+    [[material]] tables match loaded names exactly or by glob, a later table's key winning, and set
+    opacity / refraction (a table's refraction wins over the mesh's) / alpha_mode / alpha_cutoff."""
+    write_png(tmp_path / "wood.png", np.full((2, 2, 4), 200, np.uint8))
+    (tmp_path / "t.obj").write_text(TRANSPARENT_OBJ)
+    (tmp_path / "t.mtl").write_text(TRANSPARENT_MTL)
+    write_gltf(tmp_path / "g.gltf", uvs=np.zeros((4, 2), np.float32), edit=lambda doc: doc.update(
+        images=[{"uri": "wood.png"}], textures=[{"source": 0}],
+        materials=[{"name": "pane", "pbrMetallicRoughness": {"baseColorTexture": {"index": 0}}}]),
+        prim_extra={"material": 0})
+    plain = load_scene(tmp_path / "t.obj")
+    glass, red, wood = plain.materials
+    (tmp_path / "s.toml").write_text("""
+[[mesh]]
+path = "g.gltf"
+[[mesh]]
+path = "t.obj"
+name = "a"
+opacity = 0.5
+refraction = 0.1
+[[mesh]]
+path = "t.obj"
+name = "b"
+[[material]]
+name = "*curtain*"
+opacity = 0.8
+[[material]]
+name = "red_curtain"
+refraction = 0.02
+alpha_mode = "BLEND"
+[[material]]
+name = "wood"
+alpha_cutoff = 0.25
+""")
+    scene = load_scene(tmp_path / "s.toml")
+    assert [m.name for m in scene.materials] == ["pane"] + ["glass_curtain", "red_curtain", "wood"] * 2
+    pane, a_glass, a_red, a_wood, b_glass, b_red, b_wood = scene.materials
+    # untouched: the glTF's material, texture 0
+    assert (pane.alpha_mode, pane.opacity, pane.refraction, pane.base_color_texture) == ("OPAQUE", 1.0, 0.0, 0)
+    # mesh "a": opacity x 0.5 on top of the tables' values, refraction 0.1 unless a table sets it
+    assert (a_glass.alpha_mode, a_glass.opacity, a_glass.refraction) == ("BLEND", pytest.approx(0.4), 0.1)
+    assert (a_red.alpha_mode, a_red.opacity, a_red.refraction) == ("BLEND", pytest.approx(0.4), 0.02)
+    assert (a_wood.alpha_mode, a_wood.opacity, a_wood.refraction, a_wood.alpha_cutoff) == ("BLEND", 0.5, 0.1, 0.25)
+    # mesh "b": the tables only
+    assert (b_glass.alpha_mode, b_glass.opacity, b_glass.refraction) == ("BLEND", pytest.approx(0.8), 0.0)
+    assert (b_red.alpha_mode, b_red.opacity, b_red.refraction) == ("BLEND", pytest.approx(0.8), 0.02)
+    assert b_wood == replace(wood, alpha_cutoff=0.25, base_color_texture=2) and b_wood.alpha_mode == "OPAQUE"
+    # everything else as loaded: colours (the MTL's d in base_color[3]), textures re-indexed after
+    for ours, loaded in ((a_glass, glass), (a_red, red), (b_glass, glass), (b_red, red)):
+        assert ours.base_color == loaded.base_color and ours.specular_power == loaded.specular_power
+    assert red.base_color[3] == pytest.approx(0.75)
+    assert (wood.base_color_texture, a_wood.base_color_texture, b_wood.base_color_texture) == (0, 1, 2)
+    assert len(scene.textures) == 3
+    np.testing.assert_array_equal(scene.triangle_material, [0, 0, 1, 2, 3, 4, 5, 6])
+    summary = scene.summary()
+    assert (summary["transparent_materials"], summary["alpha_masked_materials"]) == (5, 0)
+
+
+def test_toml_material_alpha_mode_override(tmp_path):
+    """alpha_mode OPAQUE/MASK from a [[material]] table; OPAQUE with opacity < 1 still becomes BLEND."""
+    (tmp_path / "t.obj").write_text(TRANSPARENT_OBJ)
+    (tmp_path / "t.mtl").write_text(TRANSPARENT_MTL.replace("map_Kd wood.png\n", ""))
+    (tmp_path / "s.toml").write_text("""
+[[mesh]]
+path = "t.obj"
+[[material]]
+name = "glass_curtain"
+alpha_mode = "MASK"
+alpha_cutoff = 0.4
+[[material]]
+name = "red_?urtain"
+alpha_mode = "OPAQUE"
+opacity = 0.3
+""")
+    glass, red, wood = load_scene(tmp_path / "s.toml").materials
+    assert (glass.alpha_mode, glass.alpha_cutoff, glass.opacity) == ("MASK", 0.4, 1.0)
+    assert (red.alpha_mode, red.opacity) == ("BLEND", 0.3)
+    assert (wood.alpha_mode, wood.opacity) == ("OPAQUE", 1.0)
+
+
+@pytest.mark.parametrize("pattern", ["curtain", "*CURTAIN*", "a:wood", "glass_curtain "])
+def test_toml_material_override_matching_nothing(tmp_path, pattern):
+    """An override that matches no loaded material (names are exact and case-sensitive, and not
+    prefixed by the mesh's name) is an error naming the file and the pattern, listing the names."""
+    (tmp_path / "t.obj").write_text(TRANSPARENT_OBJ)
+    (tmp_path / "t.mtl").write_text(TRANSPARENT_MTL.replace("map_Kd wood.png\n", ""))
+    path = tmp_path / "s.toml"
+    path.write_text(f'[[mesh]]\npath = "t.obj"\nname = "a"\n[[material]]\nname = "wood"\nopacity = 0.5\n'
+                    f'[[material]]\nname = "{pattern}"\nopacity = 0.5\n')
+    msg = assert_scene_error(path, ["material[1]", repr(pattern), "matches no material", "'glass_curtain'"])
+    assert "material[0]" not in msg
+
+
+@pytest.mark.parametrize("text, words", [
+    ('[[material]]\nopacity = 0.5\n', ["material[0]", "name"]),
+    ('[[material]]\nname = "x"\n', ["material[0]", "'x'", "changes nothing"]),
+    ('[[material]]\nname = "x"\ncolor = [1, 0, 0]\n', ["material[0]", "color"]),
+    ('[material]\nname = "x"\n', ["[[material]]"]),
+    ('[[mesh]]\npath = "t.gltf"\nalpha_mode = "BLEND"\n', ["mesh[0]", "alpha_mode"]),
+    ('[[mesh]]\npath = "t.gltf"\nrefraction = -0.5\n', ["mesh[0].refraction", "-0.5"]),
+    ('[[mesh]]\npath = "t.gltf"\nopacity = 2\n', ["mesh[0].opacity", "2"]),
+])
+def test_toml_transparency_key_errors(tmp_path, text, words):
+    write_gltf(tmp_path / "t.gltf")
+    path = tmp_path / "s.toml"
+    path.write_text(text)
+    assert_scene_error(path, words)
 
 
 def test_gltf_points_and_lines_skipped_without_breaking_the_hierarchy(tmp_path):

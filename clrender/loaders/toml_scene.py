@@ -7,6 +7,15 @@ ambient = 0.05                # optional, top level (before any table): Scene.am
 path = "demo.gltf"            # relative to this file: .gltf .glb .obj .ply .stl
 name = "demo"                 # optional, prefixes the mesh names (default: the file name)
 transform = { translate = [0, 0, 0], rotate_deg = [0, 30, 0], scale = 1.0 }   # optional
+opacity = 0.5                 # optional, in [0, 1]: multiplies the opacity of every material of this mesh
+refraction = 0.05             # optional, >= 0: sets the refraction strength of every material of this mesh
+
+[[material]]                  # any number: override materials of the mesh files by name
+name = "*curtain*"            # required: a material name as loaded (exact, or an fnmatch glob)
+opacity = 0.6                 # optional, in [0, 1]: sets the material's opacity
+refraction = 0.02             # optional, >= 0: sets its refraction strength
+alpha_mode = "BLEND"          # optional: "OPAQUE" | "MASK" | "BLEND"
+alpha_cutoff = 0.5            # optional, in [0, 1]: the MASK threshold
 
 [camera]                      # optional; default: the first mesh file's camera, else none
 eye = [0, 2, 8]
@@ -59,6 +68,17 @@ changed by mesh transforms. `type = "directional"` (direction, color, intensity)
 without a `[sun]` table the first directional light (mesh files' first) becomes the sun.
 `Scene.settings["lights"]` keeps the validated `[[light]]` tables as written.
 
+Transparency (docs/transparency.md): a material is transparent when its `alpha_mode` is "BLEND";
+its alpha is base_color.a x opacity x texture.a, and an opacity below 1 makes an "OPAQUE" material
+"BLEND" (a "MASK" material with opacity < 1 is an error: set its `alpha_mode` to "BLEND" with a
+`[[material]]` override). Material names are the mesh files' own (glTF `name`, MTL `newmtl`),
+not prefixed by the mesh's `name`; patterns match case-sensitively (fnmatch), and every pattern
+must match at least one loaded material. Each material's final values are: the `[[material]]`
+keys of the tables matching it (in file order, a later table's key winning), else the loaded
+values; then `opacity` times the mesh's `opacity`, and the mesh's `refraction` where no table
+sets `refraction`. `refraction` only matters for BLEND materials rendered with
+`RenderConfig(refraction=True)` (`clrender render --refraction`).
+
 `ambient` lives at the top level (it is a Scene property, not a render setting); TOML puts keys
 written after a table header into that table, so write it before the first `[...]` line.
 
@@ -68,6 +88,7 @@ are a SceneError naming the file and the key.
 """
 from __future__ import annotations
 
+import fnmatch
 import math
 import tomllib
 from dataclasses import replace
@@ -77,14 +98,15 @@ import numpy as np
 
 from .. import structs
 from ..camera import Camera
-from ..scene import Material, Scene, SceneError, Sun
+from ..scene import ALPHA_MODES, Material, Scene, SceneError, Sun
 from .common import fail, transform_normals, transform_points
 from .lights import (AUTO_RADIUS_KEY, DIRECTIONAL_KEY, auto_radius, refresh_auto_radii, scene_diagonal,
                      sun_from_directional, transform_lights, warn_directional)
 
-TOP_LEVEL = {"mesh", "camera", "render", "light", "lights", "ambient", "sun"}
+TOP_LEVEL = {"mesh", "material", "camera", "render", "light", "lights", "ambient", "sun"}
 SUN_KEYS = {"direction", "color", "intensity", "shadow", "shadow_map_size"}
-MESH_KEYS = {"path", "name", "transform"}
+MESH_KEYS = {"path", "name", "transform", "opacity", "refraction"}
+MATERIAL_KEYS = {"name", "opacity", "refraction", "alpha_mode", "alpha_cutoff"}
 TRANSFORM_KEYS = {"translate", "rotate_deg", "scale"}
 CAMERA_KEYS = {"eye", "target", "up", "fov_y_deg", "near", "far"}
 # render settings understood by the renderer; extend this set when a new setting is added
@@ -347,6 +369,80 @@ def _random_lights(path, data) -> dict:
     return out
 
 
+def _in_range(path, key: str, value, lo: float, hi: float = math.inf) -> float:
+    value = _number(path, key, value)
+    if not lo <= value <= hi:
+        raise fail(path, f"{key} must be in [{lo:g}, {hi:g}], got {value!r}" if hi < math.inf
+                   else f"{key} must be >= {lo:g}, got {value!r}")
+    return value
+
+
+def _material_values(path, where: str, table: dict) -> dict:
+    """The material keys of `table` (a [[mesh]] or [[material]] table), validated."""
+    out = {}
+    if "opacity" in table:
+        out["opacity"] = _in_range(path, f"{where}.opacity", table["opacity"], 0.0, 1.0)
+    if "refraction" in table:
+        out["refraction"] = _in_range(path, f"{where}.refraction", table["refraction"], 0.0)
+    if "alpha_mode" in table:
+        mode = table["alpha_mode"]
+        if mode not in ALPHA_MODES:
+            raise fail(path, f"{where}.alpha_mode must be one of {', '.join(map(repr, ALPHA_MODES))}, got {mode!r}")
+        out["alpha_mode"] = mode
+    if "alpha_cutoff" in table:
+        out["alpha_cutoff"] = _in_range(path, f"{where}.alpha_cutoff", table["alpha_cutoff"], 0.0, 1.0)
+    return out
+
+
+def _material_overrides(path, data) -> list[tuple[str, str, dict]]:
+    """[[material]] -> (where, name pattern, values) per table, in file order."""
+    if not isinstance(data, list):
+        raise fail(path, "material must be an array of tables ([[material]])")
+    out = []
+    for k, table in enumerate(data):
+        where = f"material[{k}]"
+        table = _table(path, where, table)
+        _unknown(path, where, table, MATERIAL_KEYS)
+        name = table.get("name")
+        if not isinstance(name, str) or not name:
+            raise fail(path, f"{where} needs a 'name' string (a material name or a glob such as \"*glass*\")")
+        where = f"{where} ({name!r})"
+        values = _material_values(path, where, table)
+        if not values:
+            raise fail(path, f"{where} changes nothing: give at least one of "
+                             f"{', '.join(sorted(MATERIAL_KEYS - {'name'}))}")
+        out.append((where, name, values))
+    return out
+
+
+def _apply_materials(path, where: str, scene: Scene, mesh: dict, overrides: list, used: list[bool]) -> None:
+    """Apply the [[material]] overrides and the [[mesh]] table's opacity/refraction (`mesh`) to the
+    materials of one mesh file's scene; marks in `used` the overrides that matched."""
+    materials = []
+    for m in scene.materials:
+        kw: dict = {}
+        for i, (_, pattern, values) in enumerate(overrides):
+            if fnmatch.fnmatchcase(m.name, pattern):
+                used[i] = True
+                kw.update(values)
+        if "opacity" in mesh:
+            kw["opacity"] = kw.get("opacity", m.opacity) * mesh["opacity"]
+        if "refraction" in mesh and "refraction" not in kw:
+            kw["refraction"] = mesh["refraction"]
+        if kw:
+            if kw.get("alpha_mode", m.alpha_mode) == "MASK" and kw.get("opacity", m.opacity) < 1.0:
+                hint = ("a [[material]] table sets alpha_mode = \"MASK\"" if "alpha_mode" in kw else
+                        f"make it BLEND with a [[material]] table (name = {m.name!r}, alpha_mode = \"BLEND\")")
+                raise fail(path, f"{where}: material {m.name!r} is alpha_mode MASK and cannot have opacity "
+                                 f"{kw.get('opacity', m.opacity):g} < 1; {hint}")
+            try:
+                m = replace(m, **kw)
+            except SceneError as exc:
+                raise fail(path, f"{where}: {exc}") from None
+        materials.append(m)
+    scene.materials = materials
+
+
 def _concatenate(parts: list[tuple[str, Scene]], source: str) -> Scene:
     positions, normals, uvs, triangles, tri_mat, tri_mesh, tri_face = [], [], [], [], [], [], []
     materials, textures, names = [], [], []
@@ -415,6 +511,8 @@ def load_toml(path) -> Scene:
     random = _random_lights(path, data["lights"]) if "lights" in data else None
     camera = _camera(path, data["camera"]) if "camera" in data else None
     sun = _sun(path, data["sun"]) if "sun" in data else None
+    overrides = _material_overrides(path, data["material"]) if "material" in data else []
+    used = [False] * len(overrides)
 
     meshes = data.get("mesh", [])
     if not isinstance(meshes, list):
@@ -436,15 +534,23 @@ def load_toml(path) -> Scene:
         label = entry.get("name", Path(rel).name)
         if not isinstance(label, str):
             raise fail(path, f"{where}.name must be a string")
+        mesh_values = _material_values(path, where, entry)
         try:
             sub = load_scene(file)
         except SceneError as exc:
             raise SceneError(f"{path}: {where}: {exc}") from None
+        _apply_materials(path, f"{where} ({rel})", sub, mesh_values, overrides, used)
         try:
             parts.append((label, _transform_scene(sub, matrix)))
         except ValueError as exc:
             raise fail(path, f"{where}.transform: {exc}") from None
 
+    for (where, pattern, _), hit in zip(overrides, used):
+        if not hit:
+            loaded = sorted({m.name for _, sub in parts for m in sub.materials})
+            shown = ", ".join(map(repr, loaded[:12])) + (f", ... ({len(loaded)} in all)" if len(loaded) > 12 else "")
+            raise fail(path, f"{where}: name {pattern!r} matches no material of the mesh files "
+                             f"(loaded: {shown or 'none'})")
     scene = _concatenate(parts, str(path))
     scene.camera = camera if camera is not None else next((s.camera for _, s in parts if s.camera is not None), None)
     if ambient is not None:

@@ -1,9 +1,13 @@
 """Render passes: one pass module per kernel file (kernels/<name>.cl <-> passes/<name>.py)."""
+from .abuffer import AbufferPass
 from .base import RenderPass, Resources
 from .binning import BinningPass
+from .composite import CompositePass
+from .fragments import FragmentsPass
 from .gbuffer import GBufferPass
 from .light_cull import LightCullPass
 from .particles import ParticlesPass
+from .peel import PeelPass
 from .raster import RasterPass
 from .setup import SetupPass
 from .shade import ShadePass
@@ -14,4 +18,4 @@ from .tonemap import TonemapPass
 
 __all__ = ["RenderPass", "Resources", "SetupPass", "BinningPass", "RasterPass", "GBufferPass",
            "LightCullPass", "ParticlesPass", "SsaoPass", "SsaoBlurPass", "ShadowPass", "ShadePass",
-           "TonemapPass"]
+           "TonemapPass", "FragmentsPass", "AbufferPass", "PeelPass", "CompositePass"]

@@ -61,8 +61,10 @@ class LightCullPass(RenderPass):
                            np.int32(n_padded), res["view_matrix"].data, sx, sy, sz, sr)
         n_tiles = self.tiles_x * self.tiles_y
         gsize = (round_up(n_tiles, 64),)
+        fragments = "has_fragments" in res and res["has_fragments"]     # transparent fragments widen tiles
         self.depth_kernel(self.queue, gsize, None, res["gbuffer"].data, np.int32(w), np.int32(h),
                           np.float32(res["far"]), np.int32(self.tiles_x), np.int32(self.tiles_y),
+                          np.int32(fragments), (res["t_range"] if fragments else self.tile_depth).data,
                           self.tile_depth.data)
         cull = (sx, sy, sz, sr, np.int32(n_padded), self.tile_depth.data, np.int32(self.tiles_x),
                 np.int32(self.tiles_y), np.int32(w), np.int32(h), np.float32(res["tan_x"]), np.float32(res["tan_y"]))

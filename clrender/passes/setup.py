@@ -7,14 +7,21 @@ from .. import structs
 from .base import Overflow, RenderPass, empty, round_up, scan_for, zeros
 
 
+SELECT = {"all": 0, "opaque": 1, "blend": 2, "dither": 3}
+
+
 class SetupPass(RenderPass):
     name = "setup"
     inputs = ("positions", "triangles", "tri_material", "materials", "view_proj", "n_tris", "near")
     outputs = ("prims", "prim_total", "prim_capacity", "tri_status")
 
-    def __init__(self, device, config, ortho: bool = False):
-        """ortho: the view is orthographic (a sun shadow cascade); see setup.cl ORTHO."""
+    def __init__(self, device, config, ortho: bool = False, select: str = "all"):
+        """ortho: the view is orthographic (a sun shadow cascade); see setup.cl ORTHO.
+        select: which triangles become prims (setup.cl SELECT_*): "all", "opaque" (BLEND
+        triangles are left to the transparency pass), "blend" (only those), "dither" (all;
+        BLEND prims get the screen-door flag)."""
         super().__init__(device, config)
+        self.select = np.int32(SELECT[select])
         defines = {"ORTHO": 1} if ortho else None
         self.count_kernel = device.kernel("setup.cl", "setup_count", defines)
         self.emit_kernel = device.kernel("setup.cl", "setup_emit", defines)
@@ -34,6 +41,11 @@ class SetupPass(RenderPass):
             # Most triangles yield at most one prim; clipping can yield more (grown on demand).
             self._allocate_prims(max(1024, n + n // 8))
 
+    def reserve(self, capacity):
+        """Start from room for `capacity` prims (a setup that keeps a known subset of triangles)."""
+        if capacity != self.capacity:
+            self._allocate_prims(capacity)
+
     def _allocate_prims(self, capacity):
         self.capacity = int(capacity)
         self.prims = empty(self.queue, self.capacity, structs.prim_dtype)
@@ -50,7 +62,7 @@ class SetupPass(RenderPass):
         w, h = res["width"], res["height"]
         common = (res["positions"].data, res["triangles"].data, res["tri_material"].data,
                   res["materials"].data, res["view_proj"].data, np.int32(n), np.int32(w), np.int32(h),
-                  np.float32(res["near"]))
+                  np.float32(res["near"]), self.select)
         gsize = (round_up(n, 64),)
         self.count_kernel(self.queue, gsize, None, *common, self.prim_count.data, self.status.data,
                           self.staged.data)

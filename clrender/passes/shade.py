@@ -5,6 +5,8 @@ import numpy as np
 import pyopencl as cl
 import pyopencl.array as cla
 
+from dataclasses import dataclass
+
 from .. import capabilities, structs
 from .. import gbuffer as layout
 from .base import RenderPass, empty, zeros
@@ -13,9 +15,18 @@ from .base import RenderPass, empty, zeros
 SHADOW_FILTERS = {"hard": 0, "pcf3x3": 1, "poisson": 2}
 
 
+@dataclass(frozen=True)
+class LightEnv:
+    """What lighting.h's LightEnv is built from, for the forward passes over transparent
+    fragments: (tile_light_offsets, tile_light_counts, tile_lights, list capacity, light
+    tiles_x) and the shadow-map and sun arguments, in kernel order."""
+    lists: tuple
+    shadow_and_sun: tuple
+
+
 class ShadePass(RenderPass):
     name = "shade"
-    outputs = ("color", "light_count", "shadow", "shadow_planes")
+    outputs = ("color", "light_count", "shadow", "shadow_planes", "light_env")
 
     def __init__(self, device, config):
         super().__init__(device, config)
@@ -58,15 +69,23 @@ class ShadePass(RenderPass):
         self.sun_key = key
         res.buffers.update(color=self.color, light_count=self.light_count, shadow=self.shadow)
         res.values["shadow_planes"] = planes
+        if "n_transparent_tris" in res and res["n_transparent_tris"]:
+            offsets, counts, lists, capacity, tiles_x = self._lists(res)
+            res.values["light_env"] = LightEnv((offsets.data, counts.data, lists.data, np.int32(capacity),
+                                                np.int32(tiles_x)), self._shadow_args(res))
+
+    def _lists(self, res):
+        if self.brute_force:
+            return self.no_list, self.no_list, self.no_list, 0, 0
+        return (res["tile_light_offsets"], res["tile_light_counts"], res["tile_lights"], res["light_list_capacity"],
+                res["light_tiles_x"])
 
     def run(self, res):
         t = self.tile
-        if self.brute_force:
-            offsets = counts = lists = self.no_list
-            capacity = 0
-        else:
-            offsets, counts, lists = res["tile_light_offsets"], res["tile_light_counts"], res["tile_lights"]
-            capacity = res["light_list_capacity"]
+        offsets, counts, lists, capacity, _ = self._lists(res)
+        if self.shadow_planes:     # Frame.shadow is 1 (lit) where no light writes a visibility
+            n = self.shadow_planes * res["width"] * res["height"]
+            cl.enqueue_fill_buffer(self.queue, self.shadow.data, np.float32(1.0), 0, 4 * n)
         self.kernel(self.queue, (self.tiles_x * t // self.vec, self.tiles_y * t), (t // self.vec, t),
                     res["gbuffer"].data, np.int32(res["width"]), np.int32(res["height"]), np.float32(res["far"]),
                     res["camera_params"].data, res["lights"].data, np.int32(res["n_lights"]),
@@ -76,8 +95,7 @@ class ShadePass(RenderPass):
                     self.color.data, self.light_count.data, self.shadow.data)
 
     def _shadow_args(self, res):
-        """Atlas, views, bias options and sun for shade.cl; fills Frame.shadow's planes with 1
-        (full visibility) where no light writes them."""
+        """Atlas, views, bias options and sun for shade.cl (and lighting.h's LightEnv)."""
         c = self.config
         sun_cascades = spot_view0 = spot_plane0 = 0
         atlas, views, stride = self.no_ao, self.no_views, 0
@@ -86,9 +104,6 @@ class ShadePass(RenderPass):
             if lay.views:
                 atlas, views, stride = res["shadow_atlas"], res["shadow_views"], lay.atlas_width
             sun_cascades, spot_view0, spot_plane0 = lay.sun_views, lay.sun_views, int(lay.sun_views > 0)
-        if self.shadow_planes:
-            n = self.shadow_planes * res["width"] * res["height"]
-            cl.enqueue_fill_buffer(self.queue, self.shadow.data, np.float32(1.0), 0, 4 * n)
         return (atlas.data, np.int32(stride), views.data, np.float32(c.shadow_bias), np.float32(c.shadow_slope_bias),
                 np.float32(c.shadow_normal_offset), np.int32(res["sun"] is not None), self.sun.data,
                 np.int32(sun_cascades), np.int32(spot_view0), np.int32(spot_plane0))

@@ -1,0 +1,71 @@
+"""A-buffer pass (kernels/fragments.cl `fragment_fill`, kernels/abuffer.cl): per-pixel lists of
+the transparent fragments (list offsets by prefix sum of the fragments pass's counts), sorted,
+shaded with the tile light lists and blended front to back (docs/transparency.md).
+
+The fragment buffer has no cap: its total is read back after the frame and, when it exceeds
+the capacity, the buffer grows (after a check against the device's memory) and the frame is
+rendered again. `max_fragments_per_pixel` = K bounds every list to the K nearest fragments."""
+from __future__ import annotations
+
+import numpy as np
+
+from .base import Overflow, RenderPass, empty, round_up, scan_for, zeros
+from .forward import FORWARD_INPUTS, forward_args, forward_defines
+from .fragments import walk_args, walk_global_size
+
+RESOLVE_GROUP = (8, 8)
+BYTES_PER_FRAGMENT = 8          # frag_depth float + frag_prim int
+
+
+class AbufferPass(RenderPass):
+    name = "abuffer"
+    inputs = ("t_prims", "t_tile_offsets", "t_tile_counts", "t_tile_prims", "t_tile_list_capacity", "t_tiles_x",
+              "vis_depth", "frag_list_len") + FORWARD_INPUTS
+    outputs = ("layers",)
+
+    def __init__(self, device, config, fragments):
+        super().__init__(device, config)
+        self.walk = fragments               # the fragments pass: its tile shape and defines
+        self.fill_kernel = device.kernel("fragments.cl", "fragment_fill", fragments.defines)
+        self.resolve_kernel = device.kernel("abuffer.cl", "abuffer_resolve", forward_defines(config, device))
+        self.scan = scan_for(device)
+        self.total = zeros(self.queue, 1, np.int32)
+        self.capacity = 0
+
+    def allocate(self, width, height):
+        n = width * height
+        self.offsets = empty(self.queue, n, np.int32)
+        self.layers = empty(self.queue, 6 * n, np.float32)
+        if self.capacity < 2 * n:
+            self._allocate_fragments(2 * n)
+
+    def _allocate_fragments(self, capacity):
+        self.capacity = int(capacity)
+        self.frag_depth = self.frag_prim = None          # release before allocating
+        self.frag_depth = empty(self.queue, self.capacity, np.float32)
+        self.frag_prim = empty(self.queue, self.capacity, np.int32)
+
+    def publish(self, res):
+        res.buffers["layers"] = self.layers
+
+    def run(self, res):
+        w, h = res["width"], res["height"]
+        self.scan(res["frag_list_len"], self.offsets, self.total, size=w * h, queue=self.queue)
+        t, vec = self.walk.tile, self.walk.vec
+        self.fill_kernel(self.queue, walk_global_size(res, t, vec), (t // vec, t), *walk_args(res),
+                         res["frag_list_len"].data, self.offsets.data, np.int32(self.capacity),
+                         self.frag_depth.data, self.frag_prim.data)
+        gx, gy = RESOLVE_GROUP
+        self.resolve_kernel(self.queue, (round_up(w, gx), round_up(h, gy)), RESOLVE_GROUP,
+                            res["frag_list_len"].data, self.offsets.data, np.int32(self.capacity),
+                            self.frag_depth.data, self.frag_prim.data, *forward_args(res, res["t_prims"]),
+                            self.layers.data)
+
+    def overflows(self):
+        return [Overflow("fragments", self.total, self.capacity)]
+
+    def grow(self, name, needed):
+        capacity = round_up(needed + needed // 4, 4096)
+        from ..memory import check_buffer
+        check_buffer(self.device, "the A-buffer's fragment lists", needed, BYTES_PER_FRAGMENT, capacity)
+        self._allocate_fragments(capacity)

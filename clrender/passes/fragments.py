@@ -1,0 +1,92 @@
+"""Transparent fragments (kernels/fragments.cl): BLEND triangles set up and binned in prim lists
+of their own (setup.cl with select = "blend", binning.cl), then counted per pixel in front of
+the opaque surface, with their depth range (light culling widens its tiles by it).
+
+Shared by the A-buffer and depth peeling (docs/transparency.md). The pipeline skips it (no
+kernel) when the scene has no BLEND triangle."""
+from __future__ import annotations
+
+import numpy as np
+
+from .. import capabilities
+from .base import Overflow, RenderPass, Resources, empty
+from .binning import BinningPass
+from .setup import SetupPass
+
+
+class FragmentsPass(RenderPass):
+    name = "fragments"
+    inputs = ("positions", "triangles", "tri_material", "materials", "view_proj", "n_tris", "near",
+              "n_transparent_tris", "vis_depth")
+    outputs = ("t_prims", "t_tile_offsets", "t_tile_counts", "t_tile_prims", "t_tile_list_capacity", "t_tiles_x",
+               "frag_count", "frag_list_len", "t_range", "has_fragments")
+
+    def __init__(self, device, config):
+        super().__init__(device, config)
+        self.setup = SetupPass(device, config, select="blend")
+        self.binning = BinningPass(device, config)
+        self.tile = capabilities.tile_size_for(device.cl_device, config.tile_size)
+        self.vec = capabilities.raster_vector_width(device.cl_device, self.tile)
+        self.defines = {"TILE": self.tile, "VEC": self.vec, "MAX_FRAGMENTS": config.max_fragments_per_pixel}
+        self.count_kernel = device.kernel("fragments.cl", "fragment_count", self.defines)
+        self.scene_key = None
+
+    def allocate(self, width, height):
+        self.setup.allocate(width, height)
+        self.binning.allocate(width, height)
+        n = width * height
+        self.frag_count = empty(self.queue, n, np.int32)
+        self.list_len = empty(self.queue, n, np.int32)
+        self.t_range = empty(self.queue, 2 * n, np.float32)
+
+    def prepare_scene(self, scene_res):
+        self.setup.prepare_scene(scene_res)
+        key = (id(scene_res["positions"]), scene_res["n_transparent_tris"])
+        if key != self.scene_key:                      # a new scene: room for its BLEND triangles only
+            self.scene_key = key
+            t = scene_res["n_transparent_tris"]
+            self.setup.reserve(max(1024, t + t // 8))
+
+    def publish(self, res):
+        sub = self._sub(res)
+        res.buffers.update(t_prims=self.setup.prims, t_tile_offsets=self.binning.tile_offsets,
+                           t_tile_counts=self.binning.tile_counts, t_tile_prims=self.binning.tile_prims,
+                           frag_count=self.frag_count, frag_list_len=self.list_len, t_range=self.t_range)
+        res.values.update(t_tile_list_capacity=sub["tile_list_capacity"], t_tiles_x=sub["tiles_x"],
+                          has_fragments=bool(res["n_transparent_tris"]))
+
+    def _sub(self, res) -> Resources:
+        """The inner setup and binning read and write their usual names in a private copy."""
+        sub = Resources(buffers=dict(res.buffers), values=dict(res.values))
+        self.setup.publish(sub)
+        self.binning.publish(sub)
+        return sub
+
+    def run(self, res):
+        sub = self._sub(res)
+        self.setup.run(sub)
+        self.binning.run(sub)
+        t = self.tile
+        self.count_kernel(self.queue, walk_global_size(res, t, self.vec), (t // self.vec, t),
+                          *walk_args(res), self.frag_count.data, self.list_len.data, self.t_range.data)
+
+    def overflows(self):
+        return [Overflow("t_prims", self.setup.prim_total, self.setup.capacity),
+                Overflow("t_tile_prims", self.binning.total, self.binning.list_capacity)]
+
+    def grow(self, name, needed):
+        (self.setup if name == "t_prims" else self.binning).grow(name[2:], needed)
+
+
+def walk_global_size(res, tile: int, vec: int) -> tuple:
+    """fragments.cl kernels: one (tile/vec, tile) work-group per tile of the transparent lists."""
+    tiles_y = -(-res["height"] // tile)
+    return res["t_tiles_x"] * tile // vec, tiles_y * tile
+
+
+def walk_args(res) -> tuple:
+    """The leading arguments of every fragments.cl kernel: transparent prims and tile lists,
+    image size, far and the opaque depth."""
+    return (res["t_prims"].data, res["t_tile_offsets"].data, res["t_tile_counts"].data, res["t_tile_prims"].data,
+            np.int32(res["t_tile_list_capacity"]), np.int32(res["t_tiles_x"]), np.int32(res["width"]),
+            np.int32(res["height"]), np.float32(res["far"]), res["vis_depth"].data)

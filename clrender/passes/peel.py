@@ -1,0 +1,48 @@
+"""Depth-peeling pass (kernels/fragments.cl `fragment_next_layer`, kernels/peel.cl): peel_layers
+times, the nearest transparent fragment behind the previous layer is found per pixel, shaded
+with the tile light lists and blended under the layers before it (docs/transparency.md). Each
+layer walks the transparent prim lists again: the cost the report compares the A-buffer with."""
+from __future__ import annotations
+
+import numpy as np
+
+from .base import RenderPass, empty, round_up
+from .forward import FORWARD_INPUTS, forward_args, forward_defines
+from .fragments import walk_args, walk_global_size
+
+SHADE_GROUP = (8, 8)
+
+
+class PeelPass(RenderPass):
+    name = "peel"
+    inputs = ("t_prims", "t_tile_offsets", "t_tile_counts", "t_tile_prims", "t_tile_list_capacity", "t_tiles_x",
+              "vis_depth", "frag_count") + FORWARD_INPUTS
+    outputs = ("layers",)
+
+    def __init__(self, device, config, fragments):
+        super().__init__(device, config)
+        self.walk = fragments
+        self.find_kernel = device.kernel("fragments.cl", "fragment_next_layer", fragments.defines)
+        self.shade_kernel = device.kernel("peel.cl", "peel_shade", forward_defines(config, device))
+
+    def allocate(self, width, height):
+        n = width * height
+        self.layer_depth = empty(self.queue, n, np.float32)
+        self.layer_prim = empty(self.queue, n, np.int32)
+        self.layers = empty(self.queue, 6 * n, np.float32)
+
+    def publish(self, res):
+        res.buffers["layers"] = self.layers
+
+    def run(self, res):
+        w, h = res["width"], res["height"]
+        t, vec = self.walk.tile, self.walk.vec
+        walk = walk_args(res)
+        forward = forward_args(res, res["t_prims"])
+        gx, gy = SHADE_GROUP
+        for layer in range(self.config.peel_layers):
+            self.find_kernel(self.queue, walk_global_size(res, t, vec), (t // vec, t), *walk,
+                             res["frag_count"].data, np.int32(layer), self.layer_depth.data, self.layer_prim.data)
+            self.shade_kernel(self.queue, (round_up(w, gx), round_up(h, gy)), SHADE_GROUP,
+                              self.layer_depth.data, self.layer_prim.data, np.int32(layer), *forward,
+                              self.layers.data)
