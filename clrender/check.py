@@ -35,6 +35,8 @@ TOLERANCES = {
     # Shadow maps are the same fixed-point raster; a depth compare within an ulp of the bias can
     # flip one filter tap (<= 1/9 of pcf3x3, 1/16 of poisson) where implementations round differently.
     "shadow": ("abs", 0.12),
+    "fragment_count": ("exact", 0.0),  # the same fixed-point coverage and depth as the raster
+    "transmittance": ("abs", 1e-5),    # products of the same alphas (texture sampling ulps)
 }
 
 REPO_SCENES = Path(__file__).resolve().parents[1] / "scenes"
@@ -130,10 +132,31 @@ def default_cases(width: int, height: int) -> list[tuple[str, Scene, Camera]]:
     lights.add_random_lights(2000, seed=9, radius=(0.2, 1.5), intensity=0.5)
     lights.add_light_particles(200, seed=3, radius=(0.5, 1.0))
     cases.append(("lights", lights, Camera.look_at((0, 1.5, 1), (0, -1, -5), near=0.1, far=50)))
+    cases.append(("glass", _transparent_case(rng), Camera.look_at((0, 0, 0), (0, 0, -1), near=0.1, far=50)))
     return cases
 
 
-AOVS = ("triangle_id", "depth", "normal", "albedo", "velocity", "light_count", "ao", "shadow", "color", "image")
+def _transparent_case(rng) -> Scene:
+    """Overlapping BLEND triangles (some lists longer than the A-buffer's private sort) over an
+    opaque wall, a shadowed spot light and point lights: the transparency passes."""
+    from dataclasses import replace
+    n = 60
+    wall = np.array([[-9, -9, -12], [9, -9, -12], [9, 9, -12], [-9, 9, -12]], np.float32)
+    centers = rng.uniform([-1.5, -1.5, -9], [1.5, 1.5, -2], (n, 3))
+    tris = (centers[:, None, :] + rng.uniform(-1.5, 1.5, (n, 3, 3))).astype(np.float32)
+    scene = Scene.from_arrays(np.vstack([wall, tris.reshape(-1, 3)]),
+                              np.vstack([[[0, 1, 2], [0, 2, 3]], 4 + np.arange(3 * n).reshape(-1, 3)]))
+    base = scene.materials[0]
+    scene.materials = [base] + [replace(base, name=f"glass{k}", base_color=(*rng.uniform(0.2, 1, 3), 1.0),
+                                        opacity=float(rng.uniform(0.1, 0.6))) for k in range(4)]
+    scene.triangle_material = np.concatenate([[0, 0], 1 + np.arange(n) % 4]).astype(np.int32)
+    scene.add_point_light((0, 0, -4), (2, 2, 2), 8.0)
+    scene.add_spot_light((2, 3, 0), (-0.2, -0.3, -1), (6, 6, 6), 20, 20, 35, shadow=True, shadow_map_size=128)
+    return scene
+
+
+AOVS = ("triangle_id", "depth", "normal", "albedo", "velocity", "light_count", "ao", "shadow", "fragment_count",
+        "transmittance", "color", "image")
 
 
 def run_check(devices: Optional[str] = "all", scenes: Sequence[str | Path] = (), width: int = 96,
@@ -143,8 +166,15 @@ def run_check(devices: Optional[str] = "all", scenes: Sequence[str | Path] = (),
     from .loaders import load_scene
     from .renderer import Renderer
 
-    # Unlike test runs, a portability check includes simulators such as Oclgrind in "all".
+    # Unlike test runs, a portability check includes simulators such as Oclgrind in "all"
+    # (but not devices whose compiler cannot build a trivial kernel: select_devices warns).
+    from .capabilities import compiler_error
     infos = list_devices() if devices in (None, "all") else select_devices(devices)
+    if devices in (None, "all"):
+        for info in infos:
+            if compiler_error(info.cl_device) is not None:
+                select_devices("all")            # warns, naming the device and its error
+        infos = [i for i in infos if compiler_error(i.cl_device) is None]
     infos = sorted(infos, key=lambda d: d.is_simulator)   # a real device is the reference
     if not infos:
         raise DeviceError("no OpenCL device found")

@@ -78,8 +78,24 @@ def estimate(width: int, height: int, config, scene=None) -> dict:
             "setup.per_triangle": (9 + structs.prim_dtype.itemsize) * t,
             "setup.prims": structs.prim_dtype.itemsize * max(1024, t + t // 8),
         })
+        if getattr(config, "transparency", "screen_door") != "screen_door" and any(
+                m.alpha_mode == "BLEND" for m in scene.materials):
+            buffers.update(_transparency(px, tiles, t, config))
     name = max(buffers, key=buffers.get)
     return {"total": sum(buffers.values()), "largest": buffers[name], "largest_name": name}
+
+
+def _transparency(px: int, tiles: int, n_tris: int, config) -> dict:
+    """Buffers of the transparency passes (allocated when a scene has BLEND triangles)."""
+    out = {"fragments.counts+range": 16 * px, "fragments.binning": 44 * tiles,
+           "fragments.setup": (9 + structs.prim_dtype.itemsize) * n_tris + structs.prim_dtype.itemsize * 1024,
+           "composite.color": 12 * px}
+    if config.transparency == "abuffer":
+        out["abuffer.offsets+layers"] = 28 * px
+        out["abuffer.frag_depth+frag_prim"] = 8 * 2 * px      # initial capacity: 2 fragments per pixel
+    else:
+        out["peel.layer+layers"] = 32 * px
+    return out
 
 
 def check(device, width: int, height: int, config, scene=None) -> dict:

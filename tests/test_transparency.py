@@ -28,11 +28,10 @@ from reference import shading as ref_shading
 from reference import transparency as ref
 from reference.raster import coverage_count, pixel_exact_camera, screen_to_world
 
-# Fragments are shaded from unquantized float32 barycentrics, positions and normals, and blended in
-# float32; the reference is float64. 2e-4 of the brightest reference value of the frame (the opaque
-# test_lighting tolerance is 1e-4 of the peak between two float32 paths, 2e-3 against the reference
-# through the quantized G-buffer).
-COLOR_TOL = 2e-4
+# Fragments are shaded from unquantized float32 barycentrics, positions and normals and blended in
+# float32; the reference is float64: 1e-4 of the brightest reference value of the frame, the shading
+# tolerance of test_lighting.py (measured on PoCL: <= 3e-6; transmittance <= 5e-8).
+COLOR_TOL = 1e-4
 TRANSMITTANCE_TOL = 1e-5
 SETTINGS = dict(derandomize=True, deadline=None, print_blob=True,
                 suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large,
@@ -91,17 +90,18 @@ def wall(z=-12.0, material=None):
     return (quad(-12, 12, -9, 9, z), None, m)
 
 
-def random_soup(seed: int, n_transparent=None, n_materials=None):
-    """A back wall, 0-2 opaque occluders and 4-10 overlapping transparent triangles (2-5 BLEND
+def random_soup(seed: int, n_transparent=None, n_materials=None, crossing=False):
+    """A back wall, 0-2 opaque occluders and 6-14 overlapping transparent triangles (2-5 BLEND
     materials: random colour, alpha 0.05..0.95 as base_color alpha or opacity, random specular,
-    most double-sided), vertex normals perturbed per vertex, 3 point lights."""
+    most double-sided), vertex normals perturbed per vertex, 3 point lights and a spot light.
+    crossing: 2 more transparent triangles reaching behind the camera (near clipping)."""
     rng = np.random.default_rng(seed)
     tan = np.tan(np.radians(CAMERA.fov_y_deg) / 2)
     aspect = W / H
 
     def tri_at(depth_lo, depth_hi, size):
         d = rng.uniform(depth_lo, depth_hi)
-        ndc = rng.uniform(-0.7, 0.7, 2)
+        ndc = rng.uniform(-0.5, 0.5, 2)
         center = np.array([ndc[0] * d * tan * aspect, ndc[1] * d * tan, -d])
         offs = rng.normal(scale=size * d * tan, size=(3, 3))
         offs[:, 2] *= 0.6
@@ -131,12 +131,25 @@ def random_soup(seed: int, n_transparent=None, n_materials=None):
             mats.append(Material(f"glass{k}", (*color, a), alpha_mode="BLEND", **kw))
         else:
             mats.append(Material(f"glass{k}", (*color, 1.0), opacity=a, **kw))
-    for _ in range(int(n_transparent or rng.integers(4, 11))):
-        v = tri_at(2.0, 10.0, 0.45)
+    for _ in range(int(n_transparent or rng.integers(6, 15))):
+        v = tri_at(2.0, 10.0, 0.7)
         parts.append((v[None], perturbed_normals(v)[None], mats[int(rng.integers(nm))]))
+    if crossing:
+        # two BLEND triangles reaching behind the camera: near-clipped into one or two prims each
+        for k in range(2):
+            a = rng.uniform((-1.5, -1.0, -3.0), (1.5, 1.0, -1.5))
+            b = a + rng.uniform((-1.0, -1.0, -1.0), (1.0, 1.0, 0.0))
+            c = np.array([rng.uniform(-0.5, 0.5), rng.uniform(-0.5, 0.5), rng.uniform(0.5, 2.0)])
+            v = np.stack([a, b, c])
+            parts.append((v[None], perturbed_normals(v)[None], mats[k % nm]))
     lights = point_lights([(rng.uniform((-3, -2, -6), (3, 2, -1)), rng.uniform(0.5, 2.0, 3), rng.uniform(6, 12))
                            for _ in range(3)])
-    return build_scene(parts, lights=lights)
+    spot = point_lights([((rng.uniform(-2, 2), 3.0, -2.0), (1.5, 1.4, 1.2), 14.0)])
+    spot["type"] = structs.LIGHT_SPOT
+    d = np.array([rng.uniform(-0.3, 0.3), -1.0, -rng.uniform(0.5, 1.5)])
+    spot["direction"] = d / np.linalg.norm(d)
+    spot["cos_inner"], spot["cos_outer"] = np.cos(np.radians(20.0)), np.cos(np.radians(45.0))
+    return build_scene(parts, lights=np.concatenate([lights, spot]))
 
 
 def shuffled_transparent(scene: Scene, seed: int) -> tuple[Scene, np.ndarray]:
@@ -180,9 +193,9 @@ def assert_color_close(got, exp_color, ok, what, tol=COLOR_TOL):
     return err.max() / peak
 
 
-def assert_matches_reference(frame, scene, exp, ok, what, check_count=True):
+def assert_matches_reference(frame, scene, exp, ok, what, check_count=True, min_ok=0.97):
     check_opaque_surface(frame, exp)
-    assert ok.mean() > 0.97, f"{what}: only {ok.mean():.1%} of pixels are comparable"
+    assert ok.mean() > min_ok, f"{what}: only {ok.mean():.1%} of pixels are comparable"
     if check_count:
         bad = frame.fragment_count != exp.fragment_count
         if bad.any():
@@ -287,15 +300,13 @@ def test_reference_early_stop_and_lighting():
     extra = Material("extra", (1.0, 1.0, 1.0, 0.5), alpha_mode="BLEND", specular_intensity=0.0)
     scene = hand_scene((screen_quad(0, 8, 0, 8, 2.0), None, dense), (screen_quad(0, 8, 0, 8, 3.0), None, extra))
     out = ref.blend(scene, PX_CAM, SIZE, SIZE, opaque)
-    assert out.fragment_count[2, 2] == 2 and out.shaded[2, 2] == 1           # T = 1e-3 >= 1e-4: no stop yet
+    assert out.fragment_count[2, 2] == 2 and out.shaded[2, 2] == 2           # T = 1e-3 >= 1e-4: no stop yet
     dense2 = Material("dense", (0.2, 0.4, 0.6, 0.99999), alpha_mode="BLEND", specular_intensity=0.0)
     scene2 = hand_scene((screen_quad(0, 8, 0, 8, 2.0), None, dense2), (screen_quad(0, 8, 0, 8, 3.0), None, extra))
-    scene = hand_scene((screen_quad(0, 8, 0, 8, 2.0), None, extra), (screen_quad(0, 8, 0, 8, 3.0), None, dense))
-    out = ref.blend(scene, PX_CAM, SIZE, SIZE, opaque)
-    assert out.shaded[2, 2] == 2
     out2 = ref.blend(scene2, PX_CAM, SIZE, SIZE, opaque)
-    assert out2.fragment_count[2, 2] == 2 and out2.shaded[2, 2] == 1
+    assert out2.fragment_count[2, 2] == 2 and out2.shaded[2, 2] == 1         # T = 1e-5 < 1e-4: stop
     np.testing.assert_allclose(out2.transmittance[2, 2], 1e-5, rtol=1e-6)
+    np.testing.assert_allclose(out2.color[2, 2], 0.99999 * 0.5 * np.array([0.2, 0.4, 0.6]))
     # one lit layer: the same model as reference/shading.py on a head-on pixel
     lights = point_lights([((0.0, 0.0, -1.0), (1.0, 1.0, 1.0), 4.0)])
     glass = Material("glass", (0.5, 0.5, 0.5, 0.5), alpha_mode="BLEND", specular_intensity=0.5, specular_power=8.0)
@@ -305,11 +316,13 @@ def test_reference_early_stop_and_lighting():
     one = lambda v: np.asarray(v, np.float64).reshape((1, 1) + np.shape(v))
     # pixel (15, 15): its centre is at screen (15.5, 15.5), view depth 2
     d = ref_shading.pixel_directions(PX_CAM, SIZE, SIZE)[15, 15]
+    # a 1x1 image looking along that ray: its depth is measured along the unit ray
     fields = dict(normal=one([0, 0, 1]), albedo=one([0.5, 0.5, 0.5]), specular_intensity=one(0.5),
-                  specular_power=one(8.0), depth=one(2.0), triangle_id=np.zeros((1, 1), np.int32))
-    cam1 = Camera.look_at((0, 0, 0), d, fov_y_deg=90, near=0.1, far=50)     # the same ray as a 1x1 image's centre
+                  specular_power=one(8.0), depth=one(2.0 * np.linalg.norm(d)), triangle_id=np.zeros((1, 1), np.int32))
+    cam1 = Camera.look_at((0, 0, 0), d, fov_y_deg=90, near=0.1, far=50)
     c = ref_shading.shade(**fields, camera=cam1, lights=lights, ambient=0.5)[0, 0]
-    np.testing.assert_allclose(out.color[15, 15], 0.5 * c, rtol=1e-9)
+    np.testing.assert_allclose(out.color[15, 15], 0.5 * c, rtol=1e-6)
+    assert c[0] > 0.5 * 0.5 * 1.2, "the light adds to the ambient term"
 
 
 def test_reference_interpolates_normals_and_flips_back_faces():
@@ -324,26 +337,163 @@ def test_reference_interpolates_normals_and_flips_back_faces():
     a = ref.blend(front, PX_CAM, SIZE, SIZE, opaque)
     b = ref.blend(back, PX_CAM, SIZE, SIZE, opaque)
     assert b.fragments.backface.all() and not a.fragments.backface.any()
-    np.testing.assert_allclose(a.color, b.color, rtol=1e-12)
+    np.testing.assert_allclose(a.color, b.color, rtol=1e-6)       # float32 depths round per winding
     assert a.color.max() > 0.2
     # normals tilting across the quad: a smooth gradient, not a flat one
     tilted = np.array([[[-0.5, 0, 1], [0.5, 0, 1], [0.5, 0, 1]], [[-0.5, 0, 1], [0.5, 0, 1], [-0.5, 0, 1]]])
     c = ref.blend(hand_scene((q, tilted / np.linalg.norm(tilted, axis=-1, keepdims=True), m)), PX_CAM, SIZE,
                   SIZE, opaque, lights=point_lights([((-3.0, 0.0, -3.0), (1.0, 1.0, 1.0), 10.0)]))
-    row = c.color[16, :, 0]
-    assert np.all(np.diff(row[2:-2]) < 0), "light from the left: the normals turning right darken the row"
+    # by hand: on a face-on quad the perspective-correct weights are affine in the screen position
+    lp = np.array([-3.0, 0.0, -3.0])
+    for x in (1, 9, 16, 23, 30):
+        u = (x + 0.5) / SIZE
+        n = np.array([-0.5 + u, 0.0, 1.0])
+        n /= np.linalg.norm(n)
+        P = screen_to_world(x + 0.5, 16.5, SIZE, 3.0).astype(np.float64)
+        lv = lp - P
+        d = np.linalg.norm(lv)
+        diffuse = (1 - (d / 10.0) ** 2) ** 3 * max(n @ lv / d, 0.0)
+        np.testing.assert_allclose(c.color[16, x], 0.5 * (0.5 + diffuse), rtol=1e-5)
+    assert c.color[16, 1, 0] > c.color[16, 16, 0] + 0.05
 
 
 # -- A-buffer against the reference -----------------------------------------------------------------
 
-@settings(max_examples=18, **SETTINGS)
-@given(seed=st.integers(0, 2**31 - 1))
-def test_abuffer_matches_reference(make_renderer, seed):
-    scene = random_soup(seed)
+@settings(max_examples=20, **SETTINGS)
+@given(seed=st.integers(0, 2**31 - 1), crossing=st.booleans())
+def test_abuffer_matches_reference(make_renderer, seed, crossing):
+    scene = random_soup(seed, crossing=crossing)
     frame = make_renderer(W, H).render(scene, CAMERA)
     exp, ok = expected(frame, scene)
     assert exp.fragment_count.sum() > 0
-    assert_matches_reference(frame, scene, exp, ok, f"soup {seed}")
+    assert_matches_reference(frame, scene, exp, ok, f"soup {seed} (crossing the near plane: {crossing})")
+
+
+def test_near_clipped_transparent_triangles(make_renderer, device):
+    """Transparent triangles crossing the near plane: their pieces' fragments (barycentrics carried
+    by the clip) match the reference."""
+    hits = 0
+    for seed in (1, 2, 5):
+        scene = random_soup(seed, crossing=True)
+        frame = make_renderer(W, H).render(scene, CAMERA)
+        exp, ok = expected(frame, scene)
+        clipped = np.zeros((H, W), bool)
+        clipped[exp.fragments.row[exp.fragments.clipped], exp.fragments.col[exp.fragments.clipped]] = True
+        hits += int(clipped.sum())
+        assert_matches_reference(frame, scene, exp, ok, f"soup {seed} with near-clipped layers")
+    assert hits > 200, "the crossing triangles must put clipped fragments on screen"
+
+
+def test_reference_barycentrics_agree():
+    """The reference's barycentrics (contract edge functions) agree with ray casting against the
+    unsnapped triangles up to the 1/256-pixel snapping, for whole and near-clipped triangles."""
+    scene = random_soup(4, crossing=True)
+    fr = ref.fragments(scene, CAMERA, W, H)
+    assert len(fr) > 500 and fr.clipped.sum() > 100
+    eye = np.asarray(CAMERA.eye, np.float64)
+    dirs = ref_shading.pixel_directions(CAMERA, W, H)
+    world = scene.positions.astype(np.float64)
+    worst = 0.0
+    for t in np.unique(fr.tri):
+        sel = fr.tri == t
+        ray = ref._ray_barycentrics(world[scene.triangles[t]], eye, dirs[fr.row[sel], fr.col[sel]])
+        worst = max(worst, float(np.abs(ray - fr.bary[sel]).max()))
+        assert (fr.bary[sel] > -1e-3).all() and np.allclose(fr.bary[sel].sum(-1), 1.0)
+    assert worst < 2e-3, worst
+
+
+def test_light_reaching_only_a_transparent_surface(make_renderer, device):
+    """A small light in front of a transparent quad, far from the wall: light culling must take the
+    fragments' depths into each tile's range (docs/transparency.md), with every culling option."""
+    glass = Material("glass", (0.9, 0.9, 0.9, 1.0), opacity=0.6, specular_intensity=0.5, specular_power=16.0)
+    scene = build_scene([wall(-20.0), (quad(-2, 2, -1.5, 1.5, -3.0), None, glass)],
+                        lights=point_lights([((0.7, 0.3, -2.4), (3.0, 2.0, 1.0), 1.2),
+                                             ((-0.9, -0.5, -2.7), (1.0, 2.0, 3.0), 0.8)]))
+    frames = {}
+    for opts in (dict(light_culling="brute_force"), dict(light_tile_size=8), dict(light_tile_size=16),
+                 dict(light_tile_size=32), dict(light_tile_size=16, light_depth_mask=True)):
+        frame = make_renderer(W, H, **opts).render(scene, CAMERA)
+        exp, ok = expected(frame, scene)
+        lit = exp.color.max(-1) > 1.5 * (np.asarray(glass.base_color[:3]).max() * AMBIENT)
+        assert lit.sum() > 30, "the lights must visibly light the glass"
+        assert_matches_reference(frame, scene, exp, ok, f"lights on glass only, {opts}")
+        frames[repr(opts)] = frame
+    base = frames[repr(dict(light_culling="brute_force"))]
+    for k, f in frames.items():
+        np.testing.assert_allclose(f.color, base.color, rtol=0, atol=1e-5 * base.color.max(), err_msg=k)
+
+
+def test_early_stop(make_renderer, device):
+    """Behind T < 1e-4 nothing is shaded: the 3rd layer (alpha 0.5) of a pixel whose first two leave
+    T = 2.5e-5 changes neither colour nor transmittance; fragment_count still counts it."""
+    size = SIZE
+    dense = Material("dense", (0.2, 0.4, 0.6, 0.995), alpha_mode="BLEND", specular_intensity=0.0)
+    bright = Material("bright", (1.0, 1.0, 1.0, 0.5), alpha_mode="BLEND", specular_intensity=0.0)
+    parts = [(screen_quad(0, size, 0, size, 12.0), None, Material("wall", (1.0, 1.0, 1.0, 1.0)))]
+    parts += [(screen_quad(4, 28, 4, 28, 3.0), None, dense), (screen_quad(4, 28, 4, 28, 4.0), None, dense),
+              (screen_quad(0, 32, 0, 32, 5.0), None, bright)]
+    scene = build_scene(parts, ambient=40.0)
+    for opts in (dict(), dict(transparency="depth_peeling", peel_layers=3)):
+        frame = make_renderer(size, size, **opts).render(scene, PX_CAM)
+        exp, ok = expected(frame, scene, camera=PX_CAM, width=size, height=size)
+        inner = np.zeros((size, size), bool)
+        inner[4:28, 4:28] = True
+        assert np.all(exp.fragment_count[inner] == 3) and np.all(exp.shaded[inner] == 2)
+        np.testing.assert_array_equal(frame.fragment_count, exp.fragment_count)
+        np.testing.assert_allclose(frame.transmittance[inner], 0.005 ** 2, rtol=1e-3,
+                                   err_msg=f"{opts}: T must stop at the 2nd layer (1.25e-5 means the 3rd was blended)")
+        np.testing.assert_allclose(frame.transmittance[~inner], 0.5)
+        assert_matches_reference(frame, scene, exp, ok, f"early stop {opts}")
+
+
+def test_transparent_layers_cast_shadows(make_renderer, device):
+    """A shadowed spot at the eye: the front glass is lit, the glass behind it and the wall lie in its
+    (full) shadow, elsewhere lit; fragments against the reference with ray-cast visibility."""
+    from reference.shadow_rays import occluded
+    size = 64
+    cam = pixel_exact_camera(far=50.0)
+    front = Material("front", (0.9, 0.8, 0.3, 1.0), opacity=0.4, specular_intensity=0.3, specular_power=8.0)
+    back = Material("back", (0.3, 0.8, 0.9, 1.0), opacity=0.5, specular_intensity=0.3, specular_power=8.0)
+    sq = lambda x0, x1, y0, y1, d: np.array([[screen_to_world(x0, y1, size, d), screen_to_world(x1, y1, size, d),
+                                             screen_to_world(x1, y0, size, d)],
+                                            [screen_to_world(x0, y1, size, d), screen_to_world(x1, y0, size, d),
+                                             screen_to_world(x0, y0, size, d)]], np.float64)
+    parts = [(sq(0, size, 0, size, 12.0), None, Material("wall", (0.8, 0.8, 0.8, 1.0), specular_intensity=0.1)),
+             (sq(20, 44, 20, 44, 4.0), None, front), (sq(8, 56, 8, 56, 8.0), None, back)]
+    scene = build_scene(parts, ambient=0.05)
+    scene.add_spot_light((0.0, 0.0, 0.0), (0.0, 0.0, -1.0), (30.0, 30.0, 30.0), 40.0, 50.0, 60.0, shadow=True,
+                         shadow_map_size=512)
+    scene.add_point_light((2.0, 1.0, -6.0), (0.5, 0.5, 0.5), 10.0)
+    frame = make_renderer(size, size).render(scene, cam)
+    assert frame.shadow.shape == (size, size, 1)
+    vis_opaque = frame.shadow[..., 0].astype(np.float64)
+    behind_front = np.zeros((size, size), bool)
+    behind_front[20:44, 20:44] = True
+    assert vis_opaque[behind_front].max() < 0.05, "transparent surfaces cast full shadows on the wall"
+    assert vis_opaque[2, 2] > 0.95
+
+    def light_visibility(points, i):
+        if i != 0:
+            return np.ones(len(points))
+        v = -points                                      # the spot sits at the origin
+        dist = np.linalg.norm(v, axis=1)
+        dirs = v / dist[:, None]
+        return (~occluded(scene, points + 1e-3 * dirs, dirs, dist - 2e-3)).astype(np.float64)
+
+    # the opaque colour with the frame's own visibility for the spot (as the G-buffer, taken as given)
+    lights = scene.lights
+    sh = lambda ls: ref_shading.shade_frame(frame, cam, ls, scene.ambient)
+    opaque = sh(lights[1:]) + vis_opaque[..., None] * (sh(lights[:1]) - sh(lights[:0]))
+    exp = ref.blend(scene, cam, size, size, opaque, light_visibility=light_visibility)
+    edge = np.zeros((size, size), bool)                 # PCF and the map's texels blur 2 pixels around
+    edge[18:46, 18:46] = True
+    edge[22:42, 22:42] = False
+    ok = ~edge & ~exp.ambiguous
+    assert np.all(exp.fragment_count[behind_front] == 2)
+    assert_matches_reference(frame, scene, exp, ok, "shadowed spot through two glass layers", min_ok=0.88)
+    # and the back glass really is darker behind the front one than beside it (not just the reference)
+    no_shadow = ref.blend(scene, cam, size, size, opaque)
+    assert np.abs(no_shadow.color - exp.color)[behind_front].max() > 0.05 * exp.color.max()
 
 
 SEEDS = (3, 11, 2024)
@@ -411,7 +561,9 @@ def test_depth_peeling(make_renderer, device, seed):
 def test_max_fragments_per_pixel(make_renderer, device, seed):
     scene = random_soup(seed, n_transparent=10)
     abuf = render(make_renderer, device, ("soup10", seed), scene)
-    for k in (1, 3):
+    n_max = int(abuf.fragment_count.max())
+    assert n_max >= 3
+    for k in (1, n_max - 1):
         capped = render(make_renderer, device, ("soup10", seed), scene, max_fragments_per_pixel=k)
         exp, ok = expected(capped, scene, layers=k)
         assert_matches_reference(capped, scene, exp, ok, f"soup {seed}, max_fragments_per_pixel={k}")
@@ -467,7 +619,9 @@ def test_more_than_a_million_fragments(device):
         a = mats[k].base_color[3]
         acc += T * a * np.asarray(mats[k].base_color[:3]) * np.float32(amb)
         T *= 1 - a
-    expect = acc + T * np.asarray(wall_m.base_color[:3]) * np.float32(amb)
+    # the wall's colour comes from the G-buffer's (8-bit sRGB) albedo: ambient · decoded albedo
+    assert np.all(frame.albedo == frame.albedo[0, 0])
+    expect = acc + T * frame.albedo[0, 0].astype(np.float64) * np.float32(amb)
     assert T > 1e-3
     np.testing.assert_allclose(frame.color.reshape(-1, 3), np.broadcast_to(expect, (size * size, 3)),
                                rtol=0, atol=COLOR_TOL * expect.max())
@@ -683,7 +837,7 @@ def test_khronos_alpha_blend_mode(make_renderer, device):
         shown = np.isin(frame.triangle_id, ids)
         assert shown.sum() > 10, f"MASK material {scene.materials[m].name} never shows"
         assert np.all(fc[shown & (covered == 0)] == 0)
-    assert np.isfinite(frame.color).all() and frame.image.mean() > 10
+    assert np.isfinite(frame.color).all() and frame.color.max() > 0
 
 
 # -- bad input ---------------------------------------------------------------------------------------------

@@ -13,10 +13,13 @@ Brute force, built on the other references and on the spec's text, never on kern
   P = eye + z·dir(pixel) (shading.pixel_directions), N = the interpolated vertex normal,
   normalized, flipped on back faces of double-sided materials, albedo = base_color.rgb,
   specular terms from the material, no SSAO:  c = albedo·(ambient + diffuse) + specular.
-  Barycentrics are perspective-correct in the input triangle: for a prim that is the whole
-  triangle, from the contract's own edge functions at the pixel centre (snapped vertices, in
-  float64), so only float32-vs-float64 rounding separates them from any faithful kernel; for a
-  near-clipped piece, by intersecting the pixel's view ray with the triangle's plane (float64).
+  Barycentrics are perspective-correct in the input triangle, from the contract's own edge
+  functions at the pixel centre (snapped vertices, weights e_k/w_k in float64) and the prim's
+  vertex barycentrics: the identity for a whole triangle, the ones the contract's near clip
+  carries for a clipped piece (§2: the clip of the vertices extended by their barycentrics). So
+  only float32-vs-float64 rounding separates them from a faithful kernel. (Ray casting against the
+  unsnapped triangle, `_ray_barycentrics`, is not close enough for a triangle seen nearly edge-on,
+  as a near-clipped one often is: its depth then changes by whole units per pixel.)
 * Blending front to back: before shading the next fragment, stop when T < 1e-4
   (TRANSMITTANCE_EPSILON); acc += T·alpha·c; T *= 1 - alpha; color = acc + T·opaque_color.
   alpha = base_color.a · opacity (untextured materials only). `layers=N` keeps only the N
@@ -27,12 +30,13 @@ Brute force, built on the other references and on the spec's text, never on kern
   tested in test_lighting.py). `opaque_color_from_frame` does that.
 
 Out of scope (ReferenceScopeError / not modelled): textures (alpha and colour), MASK materials
-(raster reference), the sun, shadow maps, refraction.
+(raster reference), the sun, refraction. Shadows only through a caller's `light_visibility`
+(e.g. ray casts), never shadow maps.
 
 Public API::
 
     blend(scene, camera, width, height, opaque_color, lights=None, ambient=None, layers=None,
-          pixels=None) -> Blend
+          pixels=None, frags=None, light_visibility=None) -> Blend
     opaque_color_from_frame(frame, camera, lights, ambient) -> (H, W, 3) float64
     fragments(scene, camera, width, height) -> Fragments   (unsorted, every fragment)
 """
@@ -44,7 +48,8 @@ from typing import Optional
 import numpy as np
 
 from . import shading
-from .raster import F32, SUB, HALF, Prims, ReferenceScopeError, prim_fragments, setup, transform, view_projection_f32
+from .raster import (F32, SUB, HALF, Prims, ReferenceScopeError, clip_near, prim_fragments, setup, transform,
+                     view_projection_f32)
 
 TRANSMITTANCE_EPSILON = 1e-4
 
@@ -59,6 +64,7 @@ class Fragments:
     prim: np.ndarray         # (F,) int64 prim index (setup order = (triangle id, fan index))
     bary: np.ndarray         # (F, 3) float64 barycentrics in the input triangle
     backface: np.ndarray     # (F,) bool
+    clipped: np.ndarray      # (F,) bool: the prim is a near-clipped piece
     opaque_depth: np.ndarray  # (H, W) float32, +inf where no opaque surface
     opaque_id: np.ndarray    # (H, W) int32, -1 where no opaque surface
     stats: dict
@@ -117,6 +123,20 @@ def _ray_barycentrics(tri_world: np.ndarray, eye: np.ndarray, dirs: np.ndarray) 
     return np.stack([1.0 - b1 - b2, b1, b2], axis=-1)
 
 
+def _clipped_vertex_barycentrics(clip: np.ndarray, near, prim_w: np.ndarray, back: bool) -> np.ndarray:
+    """(3, 3) barycentrics (rows: prim vertices) of a near-clipped piece: the contract's clip (§2,
+    `raster.clip_near`, float32) of the clip-space vertices extended by their barycentric coordinates,
+    fan-triangulated; the piece is the one whose clip w are the prim's (in its stored vertex order)."""
+    ext = np.concatenate([clip.astype(np.float32), np.eye(3, dtype=np.float32)], axis=1)
+    poly = clip_near(ext, clip[:, 3].astype(np.float32) - F32(near))
+    order = [0, 1, 2] if back else [0, 2, 1]
+    for k in range(1, len(poly) - 1):
+        piece = np.stack([poly[0], poly[k], poly[k + 1]])[order]
+        if np.array_equal(piece[:, 3], prim_w):
+            return piece[:, 4:].astype(np.float64)
+    raise ReferenceScopeError("a clipped prim matches no piece of the reference's near clip (guard band?)")
+
+
 def fragments(scene, camera, width: int, height: int) -> Fragments:
     W, H = int(width), int(height)
     far = F32(camera.far)
@@ -138,14 +158,16 @@ def fragments(scene, camera, width: int, height: int) -> Fragments:
     # prim's vertex order (front faces had v1/v2 swapped by setup).
     M = view_projection_f32(camera, W, H)
     tris = np.asarray(scene.triangles, np.int64)
-    clip_w = transform(np.asarray(scene.positions, np.float32), M)[:, 3]
+    clip_all = transform(np.asarray(scene.positions, np.float32), M)
+    clip_w = clip_all[:, 3]
+    near = F32(camera.near)
     pieces = np.bincount(prims.tri, minlength=len(tris)) if len(prims) else np.zeros(len(tris), np.int64)
 
     eye = np.asarray(camera.eye, np.float64)
     dirs_img = shading.pixel_directions(camera, W, H)
     world = np.asarray(scene.positions, np.float64)
 
-    out = {k: [] for k in ("row", "col", "z", "tri", "prim", "bary", "backface")}
+    out = {k: [] for k in ("row", "col", "z", "tri", "prim", "bary", "backface", "clipped")}
     for n in np.flatnonzero(prim_blend):
         r, c, z = prim_fragments(prims.X[n], prims.Y[n], prims.w[n], prims.area[n], W, H, far)
         front = z < opaque_depth[r, c]
@@ -156,15 +178,14 @@ def fragments(scene, camera, width: int, height: int) -> Fragments:
         back = bool(prims.backface[n])
         order = np.array([0, 1, 2]) if back else np.array([0, 2, 1])     # prim vertex k = triangle vertex order[k]
         whole = pieces[t] == 1 and np.array_equal(prims.w[n], clip_w[tris[t]][order])
-        if whole:
-            E = _edge_values(prims.X[n], prims.Y[n], r, c)
-            wts = np.stack([E[1] / np.float64(prims.w[n][0]), E[2] / np.float64(prims.w[n][1]),
-                            E[0] / np.float64(prims.w[n][2])], axis=-1).astype(np.float64)
-            wts /= wts.sum(-1, keepdims=True)
-            bary = np.empty_like(wts)
-            bary[:, order] = wts
-        else:
-            bary = _ray_barycentrics(world[tris[t]], eye, dirs_img[r, c])
+        # Barycentrics of the prim's vertices in the input triangle: the identity (permuted) for a whole
+        # triangle, else the ones the contract's clipper carries (§2), found by redoing the clip.
+        vb = np.eye(3)[order] if whole else _clipped_vertex_barycentrics(clip_all[tris[t]], near, prims.w[n], back)
+        E = _edge_values(prims.X[n], prims.Y[n], r, c)
+        wts = np.stack([E[1] / np.float64(prims.w[n][0]), E[2] / np.float64(prims.w[n][1]),
+                        E[0] / np.float64(prims.w[n][2])], axis=-1).astype(np.float64)
+        wts /= wts.sum(-1, keepdims=True)
+        bary = wts @ vb
         out["row"].append(r)
         out["col"].append(c)
         out["z"].append(z)
@@ -172,22 +193,27 @@ def fragments(scene, camera, width: int, height: int) -> Fragments:
         out["prim"].append(np.full(len(r), n, np.int64))
         out["bary"].append(bary)
         out["backface"].append(np.full(len(r), back))
+        out["clipped"].append(np.full(len(r), not whole))
     empty = dict(row=np.zeros(0, np.int64), col=np.zeros(0, np.int64), z=np.zeros(0, np.float32),
                  tri=np.zeros(0, np.int64), prim=np.zeros(0, np.int64), bary=np.zeros((0, 3)),
-                 backface=np.zeros(0, bool))
+                 backface=np.zeros(0, bool), clipped=np.zeros(0, bool))
     arrays = {k: (np.concatenate(v) if v else empty[k]) for k, v in out.items()}
     return Fragments(**arrays, opaque_depth=opaque_depth, opaque_id=opaque_id, stats=stats)
 
 
-def shade_fragments(points, normals, albedo, spec_intensity, spec_power, eye, lights, ambient):
-    """The shading model of reference/shading.py on flat arrays: (color (F, 3), min |N·L| (F,))."""
+def shade_fragments(points, normals, albedo, spec_intensity, spec_power, eye, lights, ambient,
+                    light_visibility=None):
+    """The shading model of reference/shading.py on flat arrays: (color (F, 3), min |N·L| (F,)).
+    light_visibility(points, light index) -> (F,) factor in [0, 1] (shadows), default 1."""
     lights = np.asarray(lights, shading.structs.light_dtype).reshape(-1)
     V = shading._unit(np.asarray(eye, np.float64) - points)
     diffuse = np.zeros_like(points)
     specular = np.zeros_like(points)
     min_abs = np.full(len(points), np.inf)
-    for light in lights:
+    for i, light in enumerate(lights):
         w_ls, L, _ = shading.light_factor(points, light)
+        if light_visibility is not None:
+            w_ls = w_ls * light_visibility(points, i)
         on = w_ls > 0
         if not on.any():
             continue
@@ -205,9 +231,10 @@ def shade_fragments(points, normals, albedo, spec_intensity, spec_power, eye, li
 
 def blend(scene, camera, width: int, height: int, opaque_color, lights=None, ambient=None,
           layers: Optional[int] = None, pixels: Optional[np.ndarray] = None,
-          frags: Optional[Fragments] = None) -> Blend:
+          frags: Optional[Fragments] = None, light_visibility=None) -> Blend:
     """The expected transparent composite. `pixels` ((H, W) bool) restricts shading and blending
-    (elsewhere color = opaque_color, counts still full); `frags` reuses a `fragments()` result."""
+    (elsewhere color = opaque_color, counts still full); `frags` reuses a `fragments()` result;
+    `light_visibility(points (F, 3), light index) -> (F,)` shadows the fragments (default: none)."""
     W, H = int(width), int(height)
     lights = scene.lights if lights is None else lights
     ambient = scene.ambient if ambient is None else ambient
@@ -260,7 +287,8 @@ def blend(scene, camera, width: int, height: int, opaque_color, lights=None, amb
         n = shading._unit(n)
         n[fr.backface[sel]] *= -1.0
         P = eye + fr.z[sel].astype(np.float64)[:, None] * dirs_img[fr.row[sel], fr.col[sel]]
-        c, min_abs = shade_fragments(P, n, albedo_m[m], spec_i_m[m], spec_p_m[m], eye, lights, ambient)
+        c, min_abs = shade_fragments(P, n, albedo_m[m], spec_i_m[m], spec_p_m[m], eye, lights, ambient,
+                                     light_visibility)
         ambiguous[p] |= (min_abs < 1e-4) & (spec_i_m[m] > 0)
         a = alpha_m[m]
         acc[p] += (T[p] * a)[:, None] * c
