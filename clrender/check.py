@@ -140,10 +140,10 @@ def _transparent_case(rng) -> Scene:
     """Overlapping BLEND triangles (some lists longer than the A-buffer's private sort) over an
     opaque wall, a shadowed spot light and point lights: the transparency passes."""
     from dataclasses import replace
-    n = 60
+    n = 90
     wall = np.array([[-9, -9, -12], [9, -9, -12], [9, 9, -12], [-9, 9, -12]], np.float32)
     centers = rng.uniform([-1.5, -1.5, -9], [1.5, 1.5, -2], (n, 3))
-    tris = (centers[:, None, :] + rng.uniform(-1.5, 1.5, (n, 3, 3))).astype(np.float32)
+    tris = (centers[:, None, :] + rng.uniform(-2.5, 2.5, (n, 3, 3))).astype(np.float32)
     scene = Scene.from_arrays(np.vstack([wall, tris.reshape(-1, 3)]),
                               np.vstack([[[0, 1, 2], [0, 2, 3]], 4 + np.arange(3 * n).reshape(-1, 3)]))
     base = scene.materials[0]

@@ -30,14 +30,17 @@
 
 
 /* Screen-door transparency (docs/transparency.md): a BLEND fragment is kept where its alpha
- * reaches the 4x4 Bayer threshold (b + 0.5) / 16 of its pixel: 17 opacity levels. The pattern
- * is shifted per material so overlapping layers of two materials keep different pixels. */
+ * reaches the threshold (r + 0.5) / 16 of its pixel, r a rank of the 4x4 Bayer matrix: every
+ * 4x4 block keeps round(16·alpha) pixels, 17 opacity levels. Per material m the ranks rotate by
+ * m and odd materials shift the pattern two rows, so overlapping layers of two materials keep
+ * different pixels (over all pairs of materials 0..11 at alpha 1/4, 1/2, 3/4 the back layer
+ * keeps at least 1/16 of the overlap; on average about alpha·(1 - alpha), as independent noise). */
 constant uchar BAYER4[16] = { 0, 8, 2, 10, 12, 4, 14, 6, 3, 11, 1, 9, 15, 7, 13, 5 };
 
 static inline float screen_door_threshold(int px, int py, int material)
 {
-    const int k = (5 * material) & 15;
-    return ((float)BAYER4[((py + (k >> 2)) & 3) * 4 + ((px + (k & 3)) & 3)] + 0.5f) * (1.0f / 16.0f);
+    const int rank = (BAYER4[((py + 2 * (material & 1)) & 3) * 4 + (px & 3)] + material) & 15;
+    return ((float)rank + 0.5f) * (1.0f / 16.0f);
 }
 
 kernel __attribute__((reqd_work_group_size(TILE / VEC, TILE, 1)))
