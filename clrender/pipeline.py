@@ -108,6 +108,8 @@ class Pipeline:
         retries = 0
         while True:
             timings = []
+            for p in self.transparency:
+                p.clear_stage_events()
             for p in self.passes:
                 if p in self.transparency and not transparent:
                     continue                        # no BLEND triangle: no buffer, no kernel
@@ -140,8 +142,8 @@ class Pipeline:
         }
         if transparent:
             outputs["fragment_count"] = self.transparency[0].frag_count.get(queue=self.queue).reshape(height, width)
-            layers = res["layers"].get(queue=self.queue)
-            outputs["transmittance"] = layers[3 * width * height: 4 * width * height].reshape(height, width)
+            n = width * height                      # only the transmittance plane of the layers
+            outputs["transmittance"] = res["layers"][3 * n: 4 * n].get(queue=self.queue).reshape(height, width)
         stats = {f"{name}_ms": (end.profile.end - start.profile.start) * 1e-6 for name, start, end in timings}
         stats["total_ms"] = sum(stats.values())
         stats.update(self.passes[0].triangle_stats())
@@ -150,6 +152,8 @@ class Pipeline:
         stats["tile_size"] = self.config.tile_size
         stats["retries"] = retries
         stats.update(self._fragment_stats(outputs["fragment_count"], transparent))
+        for p in self.transparency if transparent else ():
+            stats.update(p.stage_stats())         # breakdowns of their pass's ms, not added to total_ms
         if self.shadow is not None and res["shadow_view_count"]:
             stats.update(self.shadow.pass_stats())     # breakdown of shadow_ms, not added to total_ms
         stats["lights"] = res["n_lights"]

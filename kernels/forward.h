@@ -84,11 +84,16 @@ static Fragment shade_fragment(const Forward* f, int pi, float z, int px, int py
 {
     const Prim p = f->prims[pi];
     const Material m = f->materials[p.material];
-    const float4 base = surface_base_color(&p, px, py, m, f->uvs, f->triangles, f->tx);
-
-    long e[3];
-    prim_edges(&p, (long)px * 256 + 128, (long)py * 256 + 128, e);
-    const float3 b = triangle_barycentrics(&p, prim_weights(&p, e));
+    /* Barycentrics at the pixel and its right and lower neighbours: normal, UVs and texture LOD. */
+    float3 b, b_dx, b_dy;
+    prim_barycentrics_with_derivatives(&p, px, py, &b, &b_dx, &b_dy);
+    float4 base = vload4(0, m.base_color);
+    if (m.texture >= 0) {
+        const float2 uv = interp_uv(f->uvs, f->triangles, p.tri, b);
+        base *= sample_trilinear(f->tx.texels, f->tx.srgb_lut, f->tx.infos, f->tx.levels, m.texture, uv,
+                                 interp_uv(f->uvs, f->triangles, p.tri, b + b_dx) - uv,
+                                 interp_uv(f->uvs, f->triangles, p.tri, b + b_dy) - uv);
+    }
     const int i0 = f->triangles[3 * p.tri], i1 = f->triangles[3 * p.tri + 1], i2 = f->triangles[3 * p.tri + 2];
     float3 n = b.x * vertex_attr3(f->normals, i0) + b.y * vertex_attr3(f->normals, i1)
              + b.z * vertex_attr3(f->normals, i2);

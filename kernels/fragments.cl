@@ -151,7 +151,7 @@ void fragment_fill(global const Prim* prims, global const int* tile_offsets, glo
 kernel __attribute__((reqd_work_group_size(TILE / VEC, TILE, 1)))
 void fragment_next_layer(global const Prim* prims, global const int* tile_offsets, global const int* tile_counts,
                          global const int* tile_prims, int tile_list_capacity, int tiles_x, int width, int height,
-                         float far, global const float* vis_depth, global const int* frag_count, int layer,
+                         float far, global const float* vis_depth, int layer,
                          global float* layer_depth, global int* layer_prim)
 {
     const int px0 = get_global_id(0) * VEC, py = get_global_id(1);
@@ -159,33 +159,30 @@ void fragment_next_layer(global const Prim* prims, global const int* tile_offset
     const int tile = get_group_id(1) * tiles_x + get_group_id(0);
     const int sx0 = px0 * 256 + 128, sy = py * 256 + 128;
     floatV prev_d = (floatV)(-INFINITY);
-    intV prev_p = (intV)(-1), more = 0;
-    for (int l = 0; l < VEC && px0 + l < width; ++l) {
-        const int q = py * width + px0 + l;
-        if (layer > 0) {
-            LANE_F(prev_d, l) = layer_depth[q];
-            LANE_I(prev_p, l) = layer_prim[q];
+    intV prev_p = (intV)(-1);
+    if (layer > 0)
+        for (int l = 0; l < VEC && px0 + l < width; ++l) {
+            LANE_F(prev_d, l) = layer_depth[py * width + px0 + l];
+            LANE_I(prev_p, l) = layer_prim[py * width + px0 + l];
         }
-        LANE_I(more, l) = frag_count[q] > layer;
-    }
+    /* Classic peeling: every layer walks every prim of the tile (nothing says how many layers
+     * a pixel has left), as the report's depth peeling re-renders the transparent geometry. */
+    const floatV opaque = load_opaque(vis_depth, px0, py, width);
     floatV best_d = (floatV)INFINITY;
     intV best_p = (intV)(-1);
-    if (ANY(more != 0)) {              /* the run has a fragment left to peel: walk */
-        const floatV opaque = load_opaque(vis_depth, px0, py, width);
-        const int start = tile_offsets[tile];
-        const int end = min(start + tile_counts[tile], tile_list_capacity);
-        for (int i = start; i < end; ++i) {
-            const int pi = tile_prims[i];
-            const Prim p = prims[pi];
-            floatV depth;
-            intV take = fragment_lanes(&p, sx0, sy, opaque, far, &depth);
-            if (!ANY(take)) continue;
-            const intV vpi = (intV)pi;
-            take &= ((depth > prev_d) | ((depth == prev_d) & (vpi > prev_p)))
-                  & ((depth < best_d) | ((depth == best_d) & (vpi < best_p)));
-            best_d = select(best_d, depth, take);
-            best_p = select(best_p, vpi, take);
-        }
+    const int start = tile_offsets[tile];
+    const int end = min(start + tile_counts[tile], tile_list_capacity);
+    for (int i = start; i < end; ++i) {
+        const int pi = tile_prims[i];
+        const Prim p = prims[pi];
+        floatV depth;
+        intV take = fragment_lanes(&p, sx0, sy, opaque, far, &depth);
+        if (!ANY(take)) continue;
+        const intV vpi = (intV)pi;
+        take &= ((depth > prev_d) | ((depth == prev_d) & (vpi > prev_p)))
+              & ((depth < best_d) | ((depth == best_d) & (vpi < best_p)));
+        best_d = select(best_d, depth, take);
+        best_p = select(best_p, vpi, take);
     }
     for (int l = 0; l < VEC && px0 + l < width; ++l) {
         const int q = py * width + px0 + l;

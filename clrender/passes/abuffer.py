@@ -50,16 +50,19 @@ class AbufferPass(RenderPass):
 
     def run(self, res):
         w, h = res["width"], res["height"]
-        self.scan(res["frag_list_len"], self.offsets, self.total, size=w * h, queue=self.queue)
+        with self.timed("scan"):
+            self.scan(res["frag_list_len"], self.offsets, self.total, size=w * h, queue=self.queue)
         t, vec = self.walk.tile, self.walk.vec
-        self.fill_kernel(self.queue, walk_global_size(res, t, vec), (t // vec, t), *walk_args(res),
-                         res["frag_list_len"].data, self.offsets.data, np.int32(self.capacity),
-                         self.frag_depth.data, self.frag_prim.data)
+        with self.timed("fill"):
+            self.fill_kernel(self.queue, walk_global_size(res, t, vec), (t // vec, t), *walk_args(res),
+                             res["frag_list_len"].data, self.offsets.data, np.int32(self.capacity),
+                             self.frag_depth.data, self.frag_prim.data)
         gx, gy = RESOLVE_GROUP
-        self.resolve_kernel(self.queue, (round_up(w, gx), round_up(h, gy)), RESOLVE_GROUP,
-                            res["frag_list_len"].data, self.offsets.data, np.int32(self.capacity),
-                            self.frag_depth.data, self.frag_prim.data, *forward_args(res, res["t_prims"]),
-                            self.layers.data)
+        with self.timed("resolve"):
+            self.resolve_kernel(self.queue, (round_up(w, gx), round_up(h, gy)), RESOLVE_GROUP,
+                                res["frag_list_len"].data, self.offsets.data, np.int32(self.capacity),
+                                self.frag_depth.data, self.frag_prim.data, *forward_args(res, res["t_prims"]),
+                                self.layers.data)
 
     def overflows(self):
         return [Overflow("fragments", self.total, self.capacity)]

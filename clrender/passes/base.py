@@ -64,8 +64,37 @@ class RenderPass:
     def overflows(self) -> list[Overflow]:
         return []
 
+    def timed(self, stage: str):
+        """Context manager: profiling markers around the work a stage of this pass enqueues;
+        `stage_stats()` sums them per stage ("<pass>_<stage>_ms") after the frame."""
+        return _Timed(self, stage)
+
+    def stage_stats(self) -> dict:
+        out: dict = {}
+        for stage, start, end in getattr(self, "_stage_events", ()):
+            key = f"{self.name}_{stage}_ms"
+            out[key] = out.get(key, 0.0) + (end.profile.end - start.profile.start) * 1e-6
+        return out
+
+    def clear_stage_events(self) -> None:
+        self._stage_events = []
+
     def grow(self, name: str, needed: int) -> None:
         raise NotImplementedError(f"{type(self).__name__} cannot grow {name}")
+
+
+class _Timed:
+    def __init__(self, owner, stage):
+        self.owner, self.stage = owner, stage
+
+    def __enter__(self):
+        import pyopencl as cl
+        self.start = cl.enqueue_marker(self.owner.queue)
+
+    def __exit__(self, *exc):
+        import pyopencl as cl
+        events = self.owner.__dict__.setdefault("_stage_events", [])
+        events.append((self.stage, self.start, cl.enqueue_marker(self.owner.queue)))
 
 
 def zeros(queue, n, dtype) -> cla.Array:

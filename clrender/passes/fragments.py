@@ -64,11 +64,14 @@ class FragmentsPass(RenderPass):
 
     def run(self, res):
         sub = self._sub(res)
-        self.setup.run(sub)
-        self.binning.run(sub)
+        with self.timed("setup"):
+            self.setup.run(sub)
+        with self.timed("binning"):
+            self.binning.run(sub)
         t = self.tile
-        self.count_kernel(self.queue, walk_global_size(res, t, self.vec), (t // self.vec, t),
-                          *walk_args(res), self.frag_count.data, self.list_len.data, self.t_range.data)
+        with self.timed("count"):
+            self.count_kernel(self.queue, walk_global_size(res, t, self.vec), (t // self.vec, t),
+                              *walk_args(res), self.frag_count.data, self.list_len.data, self.t_range.data)
 
     def overflows(self):
         return [Overflow("t_prims", self.setup.prim_total, self.setup.capacity),

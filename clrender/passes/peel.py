@@ -16,7 +16,7 @@ SHADE_GROUP = (8, 8)
 class PeelPass(RenderPass):
     name = "peel"
     inputs = ("t_prims", "t_tile_offsets", "t_tile_counts", "t_tile_prims", "t_tile_list_capacity", "t_tiles_x",
-              "vis_depth", "frag_count") + FORWARD_INPUTS
+              "vis_depth") + FORWARD_INPUTS
     outputs = ("layers",)
 
     def __init__(self, device, config, fragments):
@@ -41,8 +41,10 @@ class PeelPass(RenderPass):
         forward = forward_args(res, res["t_prims"])
         gx, gy = SHADE_GROUP
         for layer in range(self.config.peel_layers):
-            self.find_kernel(self.queue, walk_global_size(res, t, vec), (t // vec, t), *walk,
-                             res["frag_count"].data, np.int32(layer), self.layer_depth.data, self.layer_prim.data)
-            self.shade_kernel(self.queue, (round_up(w, gx), round_up(h, gy)), SHADE_GROUP,
-                              self.layer_depth.data, self.layer_prim.data, np.int32(layer), *forward,
-                              self.layers.data)
+            with self.timed("find"):
+                self.find_kernel(self.queue, walk_global_size(res, t, vec), (t // vec, t), *walk,
+                                 np.int32(layer), self.layer_depth.data, self.layer_prim.data)
+            with self.timed("shade"):
+                self.shade_kernel(self.queue, (round_up(w, gx), round_up(h, gy)), SHADE_GROUP,
+                                  self.layer_depth.data, self.layer_prim.data, np.int32(layer), *forward,
+                                  self.layers.data)
