@@ -19,6 +19,10 @@ Measured with ``clrender.Renderer(width, height, transparency=..., shadows=False
 * ``opaque``: the same scene with everything opaque (original materials, the quads OPAQUE);
 * ``abuffer``, ``peel4`` / ``peel8`` (``depth_peeling`` with ``peel_layers`` 4 / 8), ``screen_door``;
 
+interleaved by default (all renderers built; after the warm-up, each round renders one frame
+of every configuration, so load from other processes on a shared machine falls on all alike;
+``--sequential`` measures one configuration after the other as bench.common.time_renders does);
+
 for each: the wall time of ``render()`` (incl. readback), ``stats["total_ms"]`` (the sum of the
 passes' OpenCL profiling events), every ``*_ms`` pass, and (A-buffer, peeling) the mean and max
 of ``Frame.fragment_count``. Then the OpenGL peer (bench/gl_transparency.py: GLLightsPeer's
@@ -44,8 +48,8 @@ import numpy as np
 
 from bench.common import REPO, SPONZA, SPONZA_CAMERA, medians, require_scene, time_renders, write_record
 
-PASS_ORDER = ("setup", "binning", "raster", "gbuffer", "particles", "light_cull", "shadow", "ssao", "ssao_blur",
-              "shade", "tonemap")
+PASS_ORDER = ("setup", "binning", "raster", "gbuffer", "particles", "fragments", "light_cull", "ssao", "ssao_blur",
+              "shadow", "shade", "abuffer", "peel", "composite", "tonemap")       # clrender/pipeline.py order
 TRANSPARENT_WORDS = ("curtain", "fabric")
 CURTAIN_OPACITY = 0.5
 # The atrium's open volume between the two rows of columns (world units): where the quads go.
@@ -163,28 +167,53 @@ def fragment_stats(frame) -> dict:
 
 
 def run_clrender(args, scenes, camera, record) -> dict:
+    """Every configuration's median frame. By default the configurations are interleaved: all
+    renderers are built, each renders ``warmup`` frames, then ``repeats`` rounds render one frame
+    of each in turn, so that load from other processes on the machine falls on all of them alike.
+    ``--sequential`` times one configuration after the other (bench.common.time_renders)."""
     import clrender
-    frames = {}
-    for name, opts, variant in CONFIGS:
-        if args.only and name not in args.only:
-            continue
-        r = clrender.Renderer(args.width, args.height, device=args.device, shadows=False, **opts)
-        record.setdefault("device", r.device.name)
-        t0 = time.perf_counter()
-        stats, walls, frame = time_renders(r, scenes[variant], camera, args.warmup, args.repeats)
+    configs = [c for c in CONFIGS if not args.only or c[0] in args.only]
+    samples = {name: ([], []) for name, _, _ in configs}
+    frames, elapsed = {}, {}
+    if args.sequential:
+        for name, opts, variant in configs:
+            r = clrender.Renderer(args.width, args.height, device=args.device, shadows=False, **opts)
+            record.setdefault("device", r.device.name)
+            t0 = time.perf_counter()
+            stats, walls, frames[name] = time_renders(r, scenes[variant], camera, args.warmup, args.repeats)
+            samples[name] = (stats, walls)
+            elapsed[name] = time.perf_counter() - t0
+            del r
+    else:
+        renderers = {name: clrender.Renderer(args.width, args.height, device=args.device, shadows=False, **opts)
+                     for name, opts, _ in configs}
+        record.setdefault("device", next(iter(renderers.values())).device.name)
+        for name, _, variant in configs:
+            t0 = time.perf_counter()
+            for _ in range(args.warmup):
+                frames[name] = renderers[name].render(scenes[variant], camera)
+            elapsed[name] = time.perf_counter() - t0
+        for _ in range(args.repeats):
+            for name, _, variant in configs:
+                t0 = time.perf_counter()
+                frame = renderers[name].render(scenes[variant], camera)
+                wall = (time.perf_counter() - t0) * 1e3
+                samples[name][0].append(frame.stats)
+                samples[name][1].append(wall)
+                frames[name] = frame
+                elapsed[name] += wall / 1e3
+    for name, opts, variant in configs:
+        stats, walls = samples[name]
         med = medians(stats)
         entry = {"options": opts, "scene": variant, "median": med, "wall_ms_median": statistics.median(walls),
-                 "frames_ms": [s["total_ms"] for s in stats], "walls_ms": walls,
-                 "elapsed_s": time.perf_counter() - t0}
+                 "frames_ms": [s["total_ms"] for s in stats], "walls_ms": walls, "elapsed_s": elapsed[name]}
         if name in ("abuffer", "peel4", "peel8"):
-            entry["fragments"] = fragment_stats(frame)
+            entry["fragments"] = fragment_stats(frames[name])
         record["clrender"][name] = entry
-        frames[name] = frame
         line = (f"  {name:<12} wall {entry['wall_ms_median']:9.1f} ms   total {med['total_ms']:9.1f} ms")
         if "fragments" in entry:
             line += f"   fragments/pixel mean {entry['fragments']['mean']:.2f} max {entry['fragments']['max']}"
         print(line, flush=True)
-        del r
     return frames
 
 
@@ -349,6 +378,8 @@ def main(argv=None) -> int:
     ap.add_argument("--device", default=None)
     ap.add_argument("--no-gl", action="store_true", help="skip the OpenGL depth-peeling peer")
     ap.add_argument("--gl-layers", type=int, nargs="+", default=[4, 8])
+    ap.add_argument("--sequential", action="store_true",
+                    help="time the clrender configurations one after the other instead of interleaved")
     ap.add_argument("--only", nargs="+", choices=[c[0] for c in CONFIGS], default=None,
                     help="measure only these clrender configurations")
     ap.add_argument("--particles", type=int, default=2000)
@@ -392,7 +423,9 @@ def main(argv=None) -> int:
     print(f"lights: {args.lights} random point lights (seed {args.seed}, radius {radius:.2f}), ambient "
           f"{base.ambient:g}, shadows off", flush=True)
 
-    record = {"scene": SPONZA.name, "width": args.width, "height": args.height, "repeats": args.repeats,
+    import os
+    record = {"scene": SPONZA.name, "interleaved": not args.sequential,
+              "load_average_before": list(os.getloadavg()), "width": args.width, "height": args.height, "repeats": args.repeats,
               "warmup": args.warmup, "seed": args.seed, "lights": args.lights, "light_radius": radius,
               "intensity": args.intensity, "ambient": base.ambient, "camera": SPONZA_CAMERA,
               "switched_materials": switched, "curtain_opacity": CURTAIN_OPACITY,
@@ -403,6 +436,7 @@ def main(argv=None) -> int:
     frames = run_clrender(args, scenes, camera, record)
     if not args.no_gl:
         run_gl(args, tr, camera, record, frames)
+    record["load_average_after"] = list(os.getloadavg())
     print_tables(record)
     record["ratios"] = ratios(record)
     if record["ratios"]:

@@ -81,8 +81,8 @@ def list_devices() -> list[DeviceInfo]:
 
 
 def select_devices(spec: Optional[str] = None) -> list[DeviceInfo]:
-    """`all` (every device but simulators, and but devices whose compiler cannot build a trivial
-    kernel: a warning names them), a name substring, or `P:D`."""
+    """`all` (every device but simulators), a name substring, or `P:D`. Of several devices, those
+    whose compiler cannot build a trivial kernel are left out with a warning naming them."""
     devices = list_devices()
     if not devices:
         raise DeviceError("no OpenCL device found: install one, e.g. `pip install pocl-binary-distribution`")
@@ -100,6 +100,12 @@ def select_devices(spec: Optional[str] = None) -> list[DeviceInfo]:
     if not chosen:
         names = "; ".join(d.label for d in devices)
         raise DeviceError(f"no OpenCL device matches {spec!r}; available: {names}")
+    if len(chosen) > 1:          # a name several devices match: the ones that cannot build kernels drop out
+        usable = [d for d in chosen if capabilities.compiler_error(d.cl_device) is None]
+        for d in chosen:
+            if d not in usable:
+                _warn_unusable(d, capabilities.compiler_error(d.cl_device))
+        chosen = usable or chosen
     return chosen
 
 

@@ -15,6 +15,7 @@ import pyopencl.array as cla
 
 from . import gbuffer as layout
 from . import structs
+from .passes.base import RenderPass
 
 
 class DeviceMemoryError(ValueError):
@@ -80,15 +81,17 @@ def estimate(width: int, height: int, config, scene=None) -> dict:
         })
         if getattr(config, "transparency", "screen_door") != "screen_door" and any(
                 m.alpha_mode == "BLEND" for m in scene.materials):
-            buffers.update(_transparency(px, tiles, t, config))
+            from .scene_gpu import transparent_triangle_count
+            buffers.update(_transparency(px, tiles, t, transparent_triangle_count(scene), config))
     name = max(buffers, key=buffers.get)
     return {"total": sum(buffers.values()), "largest": buffers[name], "largest_name": name}
 
 
-def _transparency(px: int, tiles: int, n_tris: int, config) -> dict:
+def _transparency(px: int, tiles: int, n_tris: int, n_blend: int, config) -> dict:
     """Buffers of the transparency passes (allocated when a scene has BLEND triangles)."""
     out = {"fragments.counts+range": 16 * px, "fragments.binning": 44 * tiles,
-           "fragments.setup": (9 + structs.prim_dtype.itemsize) * n_tris + structs.prim_dtype.itemsize * 1024,
+           "fragments.setup": (9 + structs.prim_dtype.itemsize) * n_tris
+           + structs.prim_dtype.itemsize * max(1024, n_blend + n_blend // 8),
            "composite.color": 12 * px}
     if config.transparency == "abuffer":
         out["abuffer.offsets+layers"] = 28 * px
@@ -129,6 +132,8 @@ def _buffers(value, out: dict) -> None:
     elif isinstance(value, (list, tuple)):
         for v in value:
             _buffers(v, out)
+    elif isinstance(value, RenderPass):          # a pass's inner stages (fragments: setup, binning)
+        _buffers(vars(value), out)
 
 
 def held_bytes(pipeline, scene_res) -> dict:

@@ -562,3 +562,27 @@ def test_every_triangle_in_every_tile(make_renderer, tile):
     assert np.all(frame.triangle_id == int(np.argmin(depths)))
     assert np.all(frame.depth == np.float32(1.0))
     assert frame.stats["prims"] == n and frame.stats["triangles_in"] == n
+
+
+def test_fragment_buffer_that_cannot_fit_is_refused(device, monkeypatch):
+    """A-buffer growth past the device's memory: DeviceMemoryError stating bytes needed and available,
+    raised before the larger buffer is allocated (the limits are lowered to make it happen)."""
+    import clrender
+    from clrender import memory
+    n = 40                                          # 40 full-frame layers: 40 fragments per pixel
+    quads = [np.array([[-9, -9, -2 - k], [9, -9, -2 - k], [9, 9, -2 - k], [-9, 9, -2 - k]], np.float32)
+             for k in range(n)]
+    scene = clrender.Scene.from_arrays(np.vstack(quads), np.vstack([4 * k + np.array([[0, 1, 2], [0, 2, 3]])
+                                                                    for k in range(n)]),
+                                       material=clrender.Material("glass", opacity=0.05))
+    cam = clrender.Camera.look_at((0, 0, 0), (0, 0, -1), fov_y_deg=20, near=0.1, far=50)   # every layer covers the frame
+    clrender.Renderer(32, 32, device=device.id, transparency="screen_door").render(scene, camera=cam)  # upload
+    real = memory.limits
+    monkeypatch.setattr(memory, "limits", lambda dev: (256 * 1024, 128 * 1024))   # a 256 KiB device
+    r = clrender.Renderer(32, 32, device=device.id)
+    with pytest.raises(memory.DeviceMemoryError, match=r"A-buffer's fragment lists need \d+ bytes .* for 40960 "
+                                                       r"entries but .* has 262144 bytes"):
+        r.render(scene, camera=cam)
+    monkeypatch.setattr(memory, "limits", real)
+    frame = r.render(scene, camera=cam)             # with the real limits it renders, after growing
+    assert (frame.fragment_count == n).all() and frame.stats["retries"] >= 1

@@ -135,3 +135,32 @@ def test_200_renders_do_not_leak(device):
     assert all(len(v) == 1 for v in seen.values()), f"device bytes changed between renders: {seen}"
     assert (len(scene_gpu._UPLOADS), len(scene_gpu._LIGHTS)) == caches
     assert grown < RSS_SLACK, f"RSS grew by {grown / 2**20:.1f} MiB over 180 renders"
+
+
+def glass_scene() -> Scene:
+    """The sphere behind a transparent quad: the transparency passes allocate their buffers."""
+    scene = sphere_scene()
+    quad = np.array([[-1.5, -1.5, -2.5], [1.5, -1.5, -2.5], [1.5, 1.5, -2.5], [-1.5, 1.5, -2.5]], np.float32)
+    scene = Scene.from_arrays(np.vstack([scene.positions, quad]),
+                              np.vstack([scene.triangles, len(scene.positions) + np.array([[0, 1, 2], [0, 2, 3]])]))
+    scene.materials = [clrender.Material(), clrender.Material("glass", (0.2, 0.5, 1.0, 1.0), opacity=0.5)]
+    scene.triangle_material = np.r_[np.zeros(len(scene.triangles) - 2), 1, 1].astype(np.int32)
+    return scene
+
+
+def test_transparency_buffers_estimated_and_only_when_needed(make_renderer):
+    """A scene with BLEND triangles adds the transparency passes' buffers, which the estimate
+    covers within 2 %; a scene without any allocates none of them."""
+    w, h = 96, 64
+    r = make_renderer(w, h)
+    opaque = r.render(sphere_scene(), camera=pixel_exact_camera()).stats["device_bytes_by_owner"]
+    held = sum(opaque.get(k, 0) for k in ("fragments", "abuffer", "composite"))
+    assert held <= 64, f"an opaque scene allocated {held} bytes of transparency buffers (only 4-byte counters expected)"
+    frame = r.render(glass_scene(), camera=pixel_exact_camera())
+    assert frame.fragment_count.max() == 1 and frame.stats["fragments"] > 0
+    by_owner = frame.stats["device_bytes_by_owner"]
+    assert by_owner["fragments"] >= 16 * w * h and by_owner["abuffer"] >= (28 + 16) * w * h
+    assert by_owner["composite"] == 12 * w * h
+    known = sum(v for k, v in by_owner.items() if k in KNOWN_OWNERS | {"fragments", "abuffer", "composite"})
+    est = memory.estimate(w, h, r.config, glass_scene())["total"]
+    assert 0.98 * known <= est <= 1.02 * known + 4096, (est, known, by_owner)
