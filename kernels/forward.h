@@ -127,9 +127,11 @@ static Fragment shade_fragment(const Forward* f, int pi, float z, int px, int py
     out.color = (float3)(base.x * (f->ambient + dr) + sr, base.y * (f->ambient + dg) + sg,
                          base.z * (f->ambient + db) + sb);
     out.alpha = clamp(base.w, 0.0f, 1.0f);
-    /* View-space normal (x right, y up) -> screen displacement, y down. */
-    const float nx = dot(n, normalize(Rs)), ny = dot(n, normalize(Us));
-    out.offset = (float2)(nx, -ny) * (m.refraction * (float)f->height);
+    out.offset = (float2)(0.0f, 0.0f);
+    if (m.refraction > 0.0f) {    /* view-space normal (x right, y up) -> screen displacement, y down */
+        const float nx = dot(n, normalize(Rs)), ny = dot(n, normalize(Us));
+        out.offset = (float2)(nx, -ny) * (m.refraction * (float)f->height);
+    }
     return out;
 }
 
