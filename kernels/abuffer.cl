@@ -1,24 +1,25 @@
 /* abuffer.cl: resolve the A-buffer -- sort each pixel's transparent fragments, shade, blend.
  *
- * Algorithm (docs/transparency.md; the report's A-buffer, III.2): one work-item per pixel
- * takes its list (written by fragments.cl `fragment_fill`) and sorts it by the key
- * (z, prim index), a total order: an insertion sort in private memory for up to SORT_PRIVATE
- * fragments, an in-place heap sort of the global list beyond (long lists are sorted exactly,
- * never truncated). Then front to back: each fragment is shaded by forward.h (the tile's light
- * list, the sun, shadow maps) and blended under the layers in front of it, until the
- * transmittance falls below TRANSMITTANCE_EPSILON. The nearest fragment's refraction offset is
- * kept for composite.cl.
+ * Algorithm (docs/transparency.md; the report's A-buffer, III.2):
+ *  - `abuffer_sort`: one work-item per pixel sorts its list (written by fragments.cl
+ *    `fragment_fill`) by the key (z, prim index), a total order, writing it back in place: an
+ *    insertion sort in private memory for up to SORT_PRIVATE fragments, an in-place heap sort
+ *    of the global list beyond (long lists are sorted exactly, never truncated).
+ *  - `abuffer_resolve`: each work-item takes a run of VEC pixels of a row (inside one
+ *    light-culling tile) and walks their sorted lists together, fragment i of every lane at a
+ *    time: shaded by forward.h (the tile's light list, the sun, shadow maps) and blended under
+ *    the fragments in front of it, lane by lane, until every lane's transmittance is below
+ *    TRANSMITTANCE_EPSILON or its list ends. The nearest fragment's refraction offset is kept
+ *    for composite.cl.
  *
  * Buffers: list_len/list_offsets int[W·H]; frag_depth float[capacity], frag_prim int[capacity]
  *          (a pixel's list: [offset, offset + len)); scene, camera and lights: FORWARD_PARAMS.
  *          out: layers float[6][W·H] = blended colour (3 planes), transmittance, refraction
  *          offset x, y (pixels).
- * Work-groups: 2-D (any shape), one pixel per work-item (VEC = 1); no barriers, no local memory.
+ * Work-groups: 2-D, any shape; sort: a pixel per work-item; resolve: VEC pixels per work-item
+ * (vec.h). No barriers, no local memory.
  */
 #pragma OPENCL FP_CONTRACT OFF
-#ifndef VEC
-#define VEC 1
-#endif
 #ifndef SORT_PRIVATE
 #define SORT_PRIVATE 16
 #endif
@@ -44,32 +45,14 @@ static void sift_down(global float* D, global int* P, int i, int n)
     P[i] = p;
 }
 
-static void heap_sort(global float* D, global int* P, int n)
-{
-    for (int i = n / 2 - 1; i >= 0; --i) sift_down(D, P, i, n);
-    for (int end = n - 1; end > 0; --end) {
-        const float d = D[0];
-        const int p = P[0];
-        D[0] = D[end];
-        P[0] = P[end];
-        D[end] = d;
-        P[end] = p;
-        sift_down(D, P, 0, end);
-    }
-}
-
-kernel void abuffer_resolve(global const int* list_len, global const int* list_offsets, int capacity,
-                            global float* frag_depth, global int* frag_prim, FORWARD_PARAMS,
-                            global float* layers)
+kernel void abuffer_sort(global const int* list_len, global const int* list_offsets, int capacity,
+                         int width, int height, global float* frag_depth, global int* frag_prim)
 {
     const int px = get_global_id(0), py = get_global_id(1);
     if (px >= width || py >= height) return;
     const int q = py * width + px;
-    const int offset = list_offsets[q];
-    const int n = (offset + list_len[q] <= capacity) ? list_len[q] : 0;   /* overflow: the frame is redone */
-    const Forward f = FORWARD_INIT;
-    float4 acc = (float4)(0.0f, 0.0f, 0.0f, 1.0f);
-    float2 refract = (float2)(0.0f, 0.0f);
+    const int offset = list_offsets[q], n = list_len[q];
+    if (n < 2 || offset + n > capacity) return;          /* overflow: the frame is redone */
     global float* D = frag_depth + offset;
     global int* P = frag_prim + offset;
     if (n <= SORT_PRIVATE) {
@@ -87,18 +70,59 @@ kernel void abuffer_resolve(global const int* list_len, global const int* list_o
             d[j] = di;
             p[j] = pi;
         }
-        for (int i = 0; i < n && acc.w >= TRANSMITTANCE_EPSILON; ++i) {
-            const Fragment fr = shade_fragment(&f, p[i], d[i], px, py);
-            if (i == 0) refract = fr.offset;
-            acc = blend_under(acc, fr);
+        for (int i = 0; i < n; ++i) {
+            D[i] = d[i];
+            P[i] = p[i];
         }
-    } else {
-        heap_sort(D, P, n);
-        for (int i = 0; i < n && acc.w >= TRANSMITTANCE_EPSILON; ++i) {
-            const Fragment fr = shade_fragment(&f, P[i], D[i], px, py);
-            if (i == 0) refract = fr.offset;
-            acc = blend_under(acc, fr);
-        }
+        return;
     }
-    store_layers(layers, width * height, q, acc, refract);
+    for (int i = n / 2 - 1; i >= 0; --i) sift_down(D, P, i, n);
+    for (int end = n - 1; end > 0; --end) {
+        const float d = D[0];
+        const int p = P[0];
+        D[0] = D[end];
+        P[0] = P[end];
+        D[end] = d;
+        P[end] = p;
+        sift_down(D, P, 0, end);
+    }
+}
+
+kernel void abuffer_resolve(global const int* list_len, global const int* list_offsets, int capacity,
+                            global const float* frag_depth, global const int* frag_prim, FORWARD_PARAMS,
+                            global float* layers)
+{
+    const int px0 = get_global_id(0) * VEC, py = get_global_id(1);
+    if (px0 >= width || py >= height) return;
+    const int npix = width * height;
+    intV n = 0, offset = 0;
+    int longest = 0;
+    for (int l = 0; l < VEC && px0 + l < width; ++l) {
+        const int q = py * width + px0 + l;
+        const int len = list_offsets[q] + list_len[q] <= capacity ? list_len[q] : 0;   /* overflow: redone */
+        LANE_I(n, l) = len;
+        LANE_I(offset, l) = list_offsets[q];
+        longest = max(longest, len);
+    }
+    const Forward f = FORWARD_INIT;
+    floatV ar = 0.0f, ag = 0.0f, ab = 0.0f, t = 1.0f, ox = 0.0f, oy = 0.0f;
+    for (int i = 0; i < longest; ++i) {
+        const intV active = ((intV)i < n) & (t >= TRANSMITTANCE_EPSILON);
+        if (!ANY(active)) break;
+        intV pi = 0;
+        floatV z = 1.0f;
+        for (int l = 0; l < VEC; ++l)
+            if (LANE_I(active, l)) {
+                LANE_I(pi, l) = frag_prim[LANE_I(offset, l) + i];
+                LANE_F(z, l) = frag_depth[LANE_I(offset, l) + i];
+            }
+        const FragmentsV fr = shade_fragments(&f, pi, z, active, px0, py);
+        if (i == 0) {
+            ox = select((floatV)0.0f, fr.ox, active);
+            oy = select((floatV)0.0f, fr.oy, active);
+        }
+        blend_under(fr, active, &ar, &ag, &ab, &t);
+    }
+    for (int l = 0; l < VEC && px0 + l < width; ++l)
+        store_layers(layers, npix, py * width + px0 + l, l, ar, ag, ab, t, ox, oy);
 }

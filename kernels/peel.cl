@@ -11,35 +11,46 @@
  *
  * Buffers: layer_depth float[W·H], layer_prim int[W·H] (-1: nothing at this layer);
  *          scene, camera and lights: FORWARD_PARAMS; layers float[6][W·H] (abuffer.cl's layout:
- *          colour planes, transmittance, refraction offset), read and written.
- * Work-groups: 2-D (any shape), one pixel per work-item (VEC = 1); no barriers, no local memory.
+ *          colour planes, transmittance, refraction offset), read (layer > 0) and written.
+ * Work-groups: 2-D, any shape; VEC pixels of a row per work-item (vec.h), inside one light
+ * tile. No barriers, no local memory.
  */
 #pragma OPENCL FP_CONTRACT OFF
-#ifndef VEC
-#define VEC 1
-#endif
 #include "forward.h"
 
 kernel void peel_shade(global const float* layer_depth, global const int* layer_prim, int layer,
                        FORWARD_PARAMS, global float* layers)
 {
-    const int px = get_global_id(0), py = get_global_id(1);
-    if (px >= width || py >= height) return;
-    const int q = py * width + px, npix = width * height;
-    float4 acc = (float4)(0.0f, 0.0f, 0.0f, 1.0f);
-    float2 refract = (float2)(0.0f, 0.0f);
-    if (layer > 0) {
-        acc = (float4)(layers[q], layers[npix + q], layers[2 * npix + q], layers[3 * npix + q]);
-        refract = (float2)(layers[4 * npix + q], layers[5 * npix + q]);
+    const int px0 = get_global_id(0) * VEC, py = get_global_id(1);
+    if (px0 >= width || py >= height) return;
+    const int npix = width * height;
+    floatV ar = 0.0f, ag = 0.0f, ab = 0.0f, t = 1.0f, ox = 0.0f, oy = 0.0f, z = 1.0f;
+    intV pi = -1;
+    for (int l = 0; l < VEC && px0 + l < width; ++l) {
+        const int q = py * width + px0 + l;
+        LANE_I(pi, l) = layer_prim[q];
+        LANE_F(z, l) = layer_depth[q];
+        if (layer > 0) {
+            LANE_F(ar, l) = layers[q];
+            LANE_F(ag, l) = layers[npix + q];
+            LANE_F(ab, l) = layers[2 * npix + q];
+            LANE_F(t, l) = layers[3 * npix + q];
+            LANE_F(ox, l) = layers[4 * npix + q];
+            LANE_F(oy, l) = layers[5 * npix + q];
+        }
     }
-    const int pi = layer_prim[q];
-    if (pi >= 0 && acc.w >= TRANSMITTANCE_EPSILON) {
+    const intV active = (pi >= 0) & (t >= TRANSMITTANCE_EPSILON);
+    if (ANY(active)) {
         const Forward f = FORWARD_INIT;
-        const Fragment fr = shade_fragment(&f, pi, layer_depth[q], px, py);
-        if (layer == 0) refract = fr.offset;
-        acc = blend_under(acc, fr);
+        const FragmentsV fr = shade_fragments(&f, select((intV)0, pi, active), z, active, px0, py);
+        if (layer == 0) {
+            ox = select((floatV)0.0f, fr.ox, active);
+            oy = select((floatV)0.0f, fr.oy, active);
+        }
+        blend_under(fr, active, &ar, &ag, &ab, &t);
     } else if (layer > 0) {
-        return;                          /* unchanged */
+        return;                          /* nothing peeled here: the layers stay as they are */
     }
-    store_layers(layers, npix, q, acc, refract);
+    for (int l = 0; l < VEC && px0 + l < width; ++l)
+        store_layers(layers, npix, py * width + px0 + l, l, ar, ag, ab, t, ox, oy);
 }

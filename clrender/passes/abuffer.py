@@ -10,10 +10,10 @@ from __future__ import annotations
 import numpy as np
 
 from .base import Overflow, RenderPass, empty, round_up, scan_for, zeros
-from .forward import FORWARD_INPUTS, forward_args, forward_defines
+from .forward import FORWARD_INPUTS, forward_args, forward_defines, forward_grid, forward_vec
 from .fragments import walk_args, walk_global_size
 
-RESOLVE_GROUP = (8, 8)
+SORT_GROUP = (8, 8)
 BYTES_PER_FRAGMENT = 8          # frag_depth float + frag_prim int
 
 
@@ -27,7 +27,10 @@ class AbufferPass(RenderPass):
         super().__init__(device, config)
         self.walk = fragments               # the fragments pass: its tile shape and defines
         self.fill_kernel = device.kernel("fragments.cl", "fragment_fill", fragments.defines)
-        self.resolve_kernel = device.kernel("abuffer.cl", "abuffer_resolve", forward_defines(config, device))
+        defines = forward_defines(config, device)
+        self.vec = forward_vec(config, device)
+        self.sort_kernel = device.kernel("abuffer.cl", "abuffer_sort", defines)
+        self.resolve_kernel = device.kernel("abuffer.cl", "abuffer_resolve", defines)
         self.scan = scan_for(device)
         self.total = zeros(self.queue, 1, np.int32)
         self.capacity = 0
@@ -57,9 +60,13 @@ class AbufferPass(RenderPass):
             self.fill_kernel(self.queue, walk_global_size(res, t, vec), (t // vec, t), *walk_args(res),
                              res["frag_list_len"].data, self.offsets.data, np.int32(self.capacity),
                              self.frag_depth.data, self.frag_prim.data)
-        gx, gy = RESOLVE_GROUP
+        gx, gy = SORT_GROUP
+        with self.timed("sort"):
+            self.sort_kernel(self.queue, (round_up(w, gx), round_up(h, gy)), SORT_GROUP,
+                             res["frag_list_len"].data, self.offsets.data, np.int32(self.capacity),
+                             np.int32(w), np.int32(h), self.frag_depth.data, self.frag_prim.data)
         with self.timed("resolve"):
-            self.resolve_kernel(self.queue, (round_up(w, gx), round_up(h, gy)), RESOLVE_GROUP,
+            self.resolve_kernel(self.queue, *forward_grid(w, h, self.vec),
                                 res["frag_list_len"].data, self.offsets.data, np.int32(self.capacity),
                                 self.frag_depth.data, self.frag_prim.data, *forward_args(res, res["t_prims"]),
                                 self.layers.data)

@@ -4,13 +4,27 @@ from __future__ import annotations
 
 import numpy as np
 
+from .. import capabilities
+from .base import round_up
+
 FORWARD_INPUTS = ("prims", "positions", "normals", "uvs", "triangles", "materials", "texels", "srgb_lut",
                   "tex_infos", "tex_levels", "camera_params", "ambient", "lights", "n_lights", "light_env")
 
 
+def forward_vec(config, device) -> int:
+    """Pixels per work-item of the forward kernels: a run must lie in one light tile."""
+    return min(capabilities.pixel_vector_width(device.cl_device), config.light_tile_size)
+
+
 def forward_defines(config, device) -> dict:
-    return {"VEC": 1, "LIGHT_TILE": config.light_tile_size,
+    return {"VEC": forward_vec(config, device), "LIGHT_TILE": config.light_tile_size,
             "BRUTE_FORCE": int(config.light_culling == "brute_force"), **device_light_defines(config)}
+
+
+def forward_grid(width: int, height: int, vec: int) -> tuple[tuple, tuple]:
+    """(global, local) sizes of a forward kernel: VEC pixels of a row per work-item."""
+    local = (max(32 // vec, 1), 4)
+    return (round_up(-(-width // vec), local[0]), round_up(height, local[1])), local
 
 
 def device_light_defines(config) -> dict:

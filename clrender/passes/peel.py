@@ -6,11 +6,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from .base import RenderPass, empty, round_up
-from .forward import FORWARD_INPUTS, forward_args, forward_defines
+from .base import RenderPass, empty
+from .forward import FORWARD_INPUTS, forward_args, forward_defines, forward_grid, forward_vec
 from .fragments import walk_args, walk_global_size
-
-SHADE_GROUP = (8, 8)
 
 
 class PeelPass(RenderPass):
@@ -24,6 +22,7 @@ class PeelPass(RenderPass):
         self.walk = fragments
         self.find_kernel = device.kernel("fragments.cl", "fragment_next_layer", fragments.defines)
         self.shade_kernel = device.kernel("peel.cl", "peel_shade", forward_defines(config, device))
+        self.vec = forward_vec(config, device)
 
     def allocate(self, width, height):
         n = width * height
@@ -39,12 +38,11 @@ class PeelPass(RenderPass):
         t, vec = self.walk.tile, self.walk.vec
         walk = walk_args(res)
         forward = forward_args(res, res["t_prims"])
-        gx, gy = SHADE_GROUP
+        grid = forward_grid(w, h, self.vec)
         for layer in range(self.config.peel_layers):
             with self.timed("find"):
                 self.find_kernel(self.queue, walk_global_size(res, t, vec), (t // vec, t), *walk,
                                  np.int32(layer), self.layer_depth.data, self.layer_prim.data)
             with self.timed("shade"):
-                self.shade_kernel(self.queue, (round_up(w, gx), round_up(h, gy)), SHADE_GROUP,
-                                  self.layer_depth.data, self.layer_prim.data, np.int32(layer), *forward,
+                self.shade_kernel(self.queue, *grid, self.layer_depth.data, self.layer_prim.data, np.int32(layer), *forward,
                                   self.layers.data)
