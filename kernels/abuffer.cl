@@ -52,7 +52,7 @@ kernel void abuffer_sort(global const int* list_len, global const int* list_offs
     if (px >= width || py >= height) return;
     const int q = py * width + px;
     const int offset = list_offsets[q], n = list_len[q];
-    if (n < 2 || offset + n > capacity) return;          /* overflow: the frame is redone */
+    if (n < 2 || offset < 0 || n > capacity - offset) return;   /* overflow: the frame is redone */
     global float* D = frag_depth + offset;
     global int* P = frag_prim + offset;
     if (n <= SORT_PRIVATE) {
@@ -99,7 +99,7 @@ kernel void abuffer_resolve(global const int* list_len, global const int* list_o
     int longest = 0;
     for (int l = 0; l < VEC && px0 + l < width; ++l) {
         const int q = py * width + px0 + l;
-        const int len = list_offsets[q] + list_len[q] <= capacity ? list_len[q] : 0;   /* overflow: redone */
+        const int len = (list_offsets[q] >= 0 && list_len[q] <= capacity - list_offsets[q]) ? list_len[q] : 0;
         LANE_I(n, l) = len;
         LANE_I(offset, l) = list_offsets[q];
         longest = max(longest, len);

@@ -108,7 +108,8 @@ void fragment_fill(global const Prim* prims, global const int* tile_offsets, glo
     for (int l = 0; l < VEC; ++l) {
         const int q = py * width + min(px0 + l, width - 1);
         LANE_I(base, l) = list_offsets[q];
-        LANE_I(room, l) = (px0 + l < width && list_offsets[q] + list_len[q] <= capacity) ? list_len[q] : 0;
+        LANE_I(room, l) = (px0 + l < width && list_offsets[q] >= 0 && list_len[q] <= capacity - list_offsets[q])
+                          ? list_len[q] : 0;          /* past 2^31 fragments offsets wrap: nothing written */
     }
     intV filled = 0;
     const int start = tile_offsets[tile];

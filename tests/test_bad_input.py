@@ -586,3 +586,24 @@ def test_fragment_buffer_that_cannot_fit_is_refused(device, monkeypatch):
     monkeypatch.setattr(memory, "limits", real)
     frame = r.render(scene, camera=cam)             # with the real limits it renders, after growing
     assert (frame.fragment_count == n).all() and frame.stats["retries"] >= 1
+
+
+def test_more_fragments_than_32_bit_offsets_is_refused(device, monkeypatch):
+    """Past 2^31 - 1 fragments the A-buffer's 32-bit offsets would wrap: the host counts them exactly
+    and refuses the frame (the limit is lowered here; reaching it takes about 20 GB of device memory)."""
+    import clrender
+    from clrender.passes import abuffer
+    n = 40
+    quads = [np.array([[-9, -9, -2 - k], [9, -9, -2 - k], [9, 9, -2 - k], [-9, 9, -2 - k]], np.float32)
+             for k in range(n)]
+    scene = clrender.Scene.from_arrays(np.vstack(quads), np.vstack([4 * k + np.array([[0, 1, 2], [0, 2, 3]])
+                                                                    for k in range(n)]),
+                                       material=clrender.Material("glass", opacity=0.05))
+    cam = clrender.Camera.look_at((0, 0, 0), (0, 0, -1), fov_y_deg=20, near=0.1, far=50)
+    monkeypatch.setattr(abuffer, "MAX_FRAGMENTS", 40959)
+    with pytest.raises(memory.DeviceMemoryError, match=r"the frame has 40960 transparent fragments; the A-buffer "
+                                                       r"holds at most 40959"):
+        clrender.Renderer(32, 32, device=device.id).render(scene, camera=cam)
+    monkeypatch.setattr(abuffer, "MAX_FRAGMENTS", 40960)
+    frame = clrender.Renderer(32, 32, device=device.id).render(scene, camera=cam)
+    assert frame.stats["fragments"] == 40960

@@ -1,9 +1,11 @@
 """Small-frame tier that also runs under the Oclgrind simulator (`pytest -m oclgrind --device oclgrind`).
 
 Every kernel of the pipeline runs here on tiny frames: setup (with near clipping), binning,
-fine raster (with an alpha-masked, textured material) and the G-buffer resolve. Results are
-checked against the NumPy reference, and any error the OpenCL implementation prints (Oclgrind
-reports invalid memory accesses on stderr) fails the test.
+fine raster (with an alpha-masked, textured material) and the G-buffer resolve, lighting, SSAO,
+shadows, and transparency (fragment count/fill/next layer, the A-buffer's sort (both paths) and
+resolve with a grown buffer, depth peeling, the capped fill, screen door, the refraction
+composite). Results are checked against the NumPy references, and any error the OpenCL
+implementation prints (Oclgrind reports invalid memory accesses on stderr) fails the test.
 """
 import numpy as np
 import pytest
@@ -127,4 +129,164 @@ def test_shadow_kernels(device, capfd, filt):
     assert frame.shadow.shape == (13, 19, 2) and frame.stats["shadow_maps"] == 3
     assert frame.shadow.min() >= 0.0 and frame.shadow.max() <= 1.0
     assert (frame.shadow < 1.0).any(), "the masked quad shadows the floor"
+    assert_no_device_diagnostics(capfd)
+
+
+# -- transparency (docs/transparency.md): every new kernel on tiny frames --------------------------
+
+TW, TH = 24, 16
+T_CAM = Camera.look_at((0, 0, 0), (0, 0, -1), fov_y_deg=90.0, near=0.1, far=50)
+
+
+def pixel_rect(x0, x1, y0, y1, depth):
+    """Two camera-facing triangles covering pixels [x0, x1) × [y0, y1) of a TW×TH T_CAM image."""
+    tx, ty = TW / TH, 1.0
+
+    def at(px, py):
+        return ((px / TW * 2 - 1) * tx * depth, (1 - py / TH * 2) * ty * depth, -depth)
+    a, b, c, d = at(x0, y1), at(x1, y1), at(x1, y0), at(x0, y0)
+    return np.array([[a, b, c], [a, c, d]], np.float64)
+
+
+FRONT = (2, 10, 2, 10)        # one glass layer near the camera
+STACK = (13, 21, 5, 13)       # 20 layers: lists longer than the 16-entry private sort
+
+
+def transparent_stack_scene():
+    """A far wall, two full-frame glass layers, a front glass and a stack of 20 thin layers (ids in a
+    random depth order; depths 12 % apart, so the shadow map's biases, a few of its texels, cannot
+    bridge them); a shadowed spot at the eye (every layer behind another lies in its shadow; its
+    40-degree cone reaches the middle of the frame, both the front glass and the stack) and two
+    point lights.
+    384·2 + 64 + 64·20 fragments: more than a fresh A-buffer holds (2 per pixel)."""
+    from test_transparency import build_scene, point_lights
+    rng = np.random.default_rng(3)
+    glass = lambda name, rgb, a: Material(name, (*rgb, 1.0), opacity=a, specular_intensity=0.4, specular_power=12.0)
+    parts = [(pixel_rect(0, TW, 0, TH, 44.0), None, Material("wall", (0.7, 0.7, 0.7, 1.0), specular_intensity=0.2)),
+             (pixel_rect(0, TW, 0, TH, 30.0), None, glass("haze", (0.4, 0.6, 0.9), 0.3)),
+             (pixel_rect(0, TW, 0, TH, 36.0), None, glass("mist", (0.9, 0.6, 0.4), 0.25)),
+             (pixel_rect(*FRONT, 2.0), None, glass("front", (0.9, 0.9, 0.2), 0.5))]
+    films = [glass(f"film{k}", rng.uniform(0.2, 1.0, 3), float(rng.uniform(0.05, 0.12))) for k in range(4)]
+    for k, d in enumerate(3.0 * 1.12 ** rng.permutation(20)):
+        parts.append((pixel_rect(*STACK, d), None, films[k % 4]))
+    scene = build_scene(parts, ambient=0.1,
+                        lights=point_lights([((-1.0, 0.5, -2.5), (1.0, 0.8, 0.6), 40.0),
+                                             ((1.5, -0.5, -10.0), (0.5, 0.7, 1.0), 30.0)]))
+    scene.add_spot_light((0.0, 0.0, 0.0), (0.0, 0.0, -1.0), (12.0, 12.0, 12.0), 100.0, 30.0, 40.0, shadow=True,
+                         shadow_map_size=128)
+    return scene
+
+
+def transparency_expected(frame, scene, layers=None, shadows=True):
+    """(reference blend, comparable pixels): the spot's visibility of fragments by ray casting, of the
+    opaque wall from the frame's own shadow AOV; pixels next to a layer's edge (shadow-map texels and
+    PCF blur the shadow there) are left out."""
+    from reference import shading as ref_shading
+    from reference import transparency as ref
+    from reference.shadow_rays import occluded
+    spot = int(np.flatnonzero(scene.lights["type"] == clrender.structs.LIGHT_SPOT)[0])
+
+    def light_visibility(points, i):
+        if i != spot:
+            return np.ones(len(points))
+        v = scene.lights["position"][i].astype(np.float64) - points
+        dist = np.linalg.norm(v, axis=1)
+        dirs = v / dist[:, None]
+        return (~occluded(scene, points + 1e-3 * dirs, dirs, dist - 2e-3)).astype(np.float64)
+
+    others = np.delete(scene.lights, spot)
+    sh = lambda ls: ref_shading.shade_frame(frame, T_CAM, ls, scene.ambient)
+    vis = frame.shadow[..., 0].astype(np.float64)[..., None]
+    opaque = sh(others) + vis * (sh(scene.lights[spot:spot + 1]) - sh(scene.lights[:0]))
+    exp = ref.blend(scene, T_CAM, TW, TH, opaque, layers=layers, light_visibility=light_visibility if shadows else None)
+    edge = np.zeros((TH, TW), bool)
+    for x0, x1, y0, y1 in (FRONT, STACK):
+        edge[max(y0 - 1, 0):y1 + 1, max(x0 - 1, 0):x1 + 1] = True
+        edge[y0 + 1:y1 - 1, x0 + 1:x1 - 1] = False
+    return exp, ~edge & ~exp.ambiguous
+
+
+def assert_transparency_matches(frame, exp, ok, what):
+    np.testing.assert_array_equal(frame.fragment_count, exp.fragment_count, err_msg=what)
+    np.testing.assert_array_equal(frame.triangle_id, exp.fragments.opaque_id, err_msg=what)
+    assert ok.sum() > 200
+    np.testing.assert_allclose(frame.transmittance[ok], exp.transmittance[ok], rtol=0, atol=1e-5, err_msg=what)
+    peak = float(exp.color.max())
+    np.testing.assert_allclose(frame.color[ok], exp.color[ok], rtol=0, atol=1e-4 * peak, err_msg=what)
+
+
+def test_abuffer_kernels(device, capfd):
+    """Fragment count, fill, sort (insertion and, beyond 16, heap), forward shading with the tile light
+    lists and a spot's shadow map, composite; a fresh renderer's A-buffer overflows and grows (retry)."""
+    scene = transparent_stack_scene()
+    frame = clrender.Renderer(TW, TH, device=device.id, tile_size=8, light_tile_size=8).render(scene, T_CAM)
+    exp, ok = transparency_expected(frame, scene)
+    assert exp.fragment_count.max() == 22 and exp.fragment_count.sum() > 2 * TW * TH
+    assert frame.stats["retries"] >= 1, "the A-buffer must have grown"
+    assert frame.shadow.shape == (TH, TW, 1) and frame.shadow[6, 6, 0] < 0.05, "the layers shadow the wall"
+    assert_transparency_matches(frame, exp, ok, "A-buffer")
+    unshadowed, _ = transparency_expected(frame, scene, shadows=False)
+    assert np.abs(unshadowed.color - exp.color)[ok].max() > 0.05 * exp.color.max(), \
+        "the spot's shadows must matter in the comparison"
+    assert_no_device_diagnostics(capfd)
+
+
+def test_depth_peeling_and_cap_kernels(device, capfd):
+    """Depth peeling (fragment_next_layer, peel_shade, composite) with 3 layers, and the A-buffer's
+    capped fill (max_fragments_per_pixel keeps the 4 nearest, counting the rest as dropped)."""
+    scene = transparent_stack_scene()
+    peeled = clrender.Renderer(TW, TH, device=device.id, tile_size=8, light_tile_size=8,
+                               transparency="depth_peeling", peel_layers=3).render(scene, T_CAM)
+    exp, ok = transparency_expected(peeled, scene, layers=3)
+    assert_transparency_matches(peeled, exp, ok, "3 peels")
+    capped = clrender.Renderer(TW, TH, device=device.id, tile_size=8, light_tile_size=8,
+                               max_fragments_per_pixel=4).render(scene, T_CAM)
+    exp4, ok4 = transparency_expected(capped, scene, layers=4)
+    assert_transparency_matches(capped, exp4, ok4, "max_fragments_per_pixel=4")
+    assert capped.stats["fragments_dropped"] == int(np.maximum(exp4.fragment_count - 4, 0).sum())
+    assert_no_device_diagnostics(capfd)
+
+
+def test_screen_door_kernels(device, capfd):
+    """BLEND triangles through the opaque setup and raster with the 4x4 dither threshold."""
+    from test_transparency import build_scene
+    scene = build_scene([(pixel_rect(0, TW, 0, TH, 12.0), None, Material("wall", (0.7, 0.7, 0.7, 1.0))),
+                         (pixel_rect(4, 20, 4, 12, 4.0), None, Material("glass", (0.9, 0.2, 0.2, 1.0), opacity=0.5))])
+    scene.add_spot_light((0.5, 0.5, 0.0), (0.0, 0.0, -1.0), (5.0, 5.0, 5.0), 30.0, 50.0, 65.0, shadow=True,
+                         shadow_map_size=32)
+    frame = clrender.Renderer(TW, TH, device=device.id, tile_size=8, light_tile_size=8,
+                              transparency="screen_door").render(scene, T_CAM)
+    ids = frame.triangle_id
+    kept = np.isin(ids, (2, 3))
+    assert kept[4:12, 4:20].mean() == 0.5 and not kept[:4].any() and not kept[12:].any()
+    blocks = kept[4:12, 4:20].reshape(2, 4, 4, 4).sum(axis=(1, 3))
+    assert (blocks == 8).all(), blocks
+    assert (ids >= 0).all()
+    assert np.all(frame.fragment_count == 0) and np.all(frame.transmittance == 1.0)
+    assert frame.color[kept].max() > 0 and np.isfinite(frame.color).all()
+    assert_no_device_diagnostics(capfd)
+
+
+def test_refraction_kernels(device, capfd):
+    """The composite's displaced lookup behind a tilted refracting glass (shadows on)."""
+    from test_transparency import build_scene
+    light_m = Material("light", (0.9, 0.9, 0.9, 1.0), specular_intensity=0.0)
+    dark_m = Material("dark", (0.05, 0.1, 0.3, 1.0), specular_intensity=0.0)
+    parts = [(pixel_rect(x, x + 2, 0, TH, 12.0), None, light_m if (x // 2) % 2 else dark_m) for x in range(0, TW, 2)]
+    t = np.radians(35.0)
+    rot = np.array([[np.cos(t), 0, np.sin(t)], [0, 1, 0], [-np.sin(t), 0, np.cos(t)]])
+    q = 2.0 * np.array([[[-1, -1, 0], [1, -1, 0], [1, 1, 0]], [[-1, -1, 0], [1, 1, 0], [-1, 1, 0]]], np.float64) @ rot.T
+    glass = Material("glass", (0.3, 0.8, 0.4, 1.0), opacity=0.5, refraction=0.15)
+    scene = build_scene(parts + [(q + (0.0, 0.0, -4.0), None, glass)], ambient=0.5)
+    scene.add_spot_light((0.5, 0.5, 0.0), (0.0, 0.0, -1.0), (2.0, 2.0, 2.0), 30.0, 50.0, 65.0, shadow=True,
+                         shadow_map_size=32)
+    opts = dict(device=device.id, tile_size=8, light_tile_size=8)
+    plain = clrender.Renderer(TW, TH, **opts).render(scene, T_CAM)
+    bent = clrender.Renderer(TW, TH, refraction=True, **opts).render(scene, T_CAM)
+    layered = plain.fragment_count > 0
+    assert layered.sum() > 20
+    np.testing.assert_array_equal(bent.fragment_count, plain.fragment_count)
+    np.testing.assert_array_equal(bent.transmittance, plain.transmittance)
+    np.testing.assert_array_equal(bent.color[~layered], plain.color[~layered])
+    assert (np.abs(bent.color - plain.color).max(-1)[layered] > 1e-3).mean() > 0.3
     assert_no_device_diagnostics(capfd)

@@ -1,15 +1,20 @@
 """Transparency (docs/transparency.md) against the independent NumPy reference tests/reference/transparency.py.
 
 * the reference itself on hand-computed cases (no device);
-* A-buffer == reference on random soups of overlapping transparent triangles (random alpha and
-  colours, vertex normals that vary across each triangle, single- and double-sided) with opaque
-  occluders, a back wall and point lights: fragment_count exact, transmittance within 1e-5,
-  color within COLOR_TOL of the frame's brightest reference value. The opaque colour under the
-  layers is the float64 reference shading of the frame's own (opaque-only) G-buffer;
+* A-buffer == reference on random soups (hypothesis) of overlapping transparent triangles (random
+  alpha and colours, vertex normals varying across each triangle, single- and double-sided, some
+  crossing the near plane) with opaque occluders, a back wall, point and spot lights:
+  fragment_count exact, transmittance within 1e-5, color within COLOR_TOL of the frame's brightest
+  reference value. The opaque colour under the layers is the float64 reference shading of the
+  frame's own (opaque-only) G-buffer, whose triangle_id must equal the reference's opaque raster;
+* lights reaching only a glass (every culling option), early stop, shadows cast by glass (ray-cast
+  visibility), far plane and background, coplanar ties, alpha-0 texels, SSAO, fragment shading ==
+  opaque shading (sun cascades, shadowed spot, texture), tile sizes, odd image sizes, reuse;
 * order independence (shuffled transparent triangles: bit-identical), depth peeling (== A-buffer
   bit for bit with enough layers, == the reference truncated to N layers with fewer),
-  max_fragments_per_pixel, screen door, overflow (200 fragments per pixel; > 1M fragments, both
-  with retries), opaque scenes unchanged by the transparency mode, refraction, the Khronos
+  max_fragments_per_pixel, screen door (the documented dither, every material pair), overflow
+  (200 fragments per pixel; > 1M fragments; retries), opaque scenes unchanged by the transparency
+  mode, refraction (the displaced lookup, clamping, back faces, face-on), the Khronos
   AlphaBlendModeTest scene, bad input.
 """
 from __future__ import annotations
@@ -46,7 +51,7 @@ KHRONOS = os.path.join(os.path.dirname(__file__), "..", "..", "shared", "scenes"
 
 # -- scene construction --------------------------------------------------------------------------
 
-def build_scene(parts, ambient=AMBIENT, lights=None) -> Scene:
+def build_scene(parts, ambient=AMBIENT, lights=None, uvs=None, textures=()) -> Scene:
     """parts: (vertices (n, 3, 3), normals (n, 3, 3) or None for flat, Material); every triangle has
     its own three vertices, triangle ids follow the order of parts."""
     materials, pos, nrm, mat = [], [], [], []
@@ -63,8 +68,9 @@ def build_scene(parts, ambient=AMBIENT, lights=None) -> Scene:
         mat.append(np.full(len(verts), materials.index(material), np.int32))
     pos, nrm = np.concatenate(pos), np.concatenate(nrm)
     t = len(pos)
-    scene = Scene(pos.reshape(-1, 3), nrm.reshape(-1, 3), np.zeros((3 * t, 2), np.float32),
-                  np.arange(3 * t, dtype=np.int32).reshape(-1, 3), np.concatenate(mat), materials)
+    uvs = np.zeros((3 * t, 2), np.float32) if uvs is None else uvs
+    scene = Scene(pos.reshape(-1, 3), nrm.reshape(-1, 3), uvs, np.arange(3 * t, dtype=np.int32).reshape(-1, 3),
+                  np.concatenate(mat), materials, textures=list(textures))
     scene.ambient = ambient
     if lights is not None:
         scene.lights = lights
@@ -496,6 +502,213 @@ def test_transparent_layers_cast_shadows(make_renderer, device):
     assert np.abs(no_shadow.color - exp.color)[behind_front].max() > 0.05 * exp.color.max()
 
 
+def test_far_plane_and_background(make_renderer, device):
+    """A glass tilted through the far plane over the background (no opaque surface: opaque depth
+    +inf, colour 0): fragments stop at z <= far; over nothing the colour is the layers' alone."""
+    cam = Camera.look_at((0.0, 0.0, 0.0), (0.0, 0.0, -1.0), fov_y_deg=60.0, near=0.1, far=9.0)
+    t = np.radians(60.0)
+    rot = np.array([[np.cos(t), 0, np.sin(t)], [0, 1, 0], [-np.sin(t), 0, np.cos(t)]])
+    q = quad(-6, 6, -3, 3, 0.0) @ rot.T + np.array([0.0, 0.0, -8.0])
+    glass = Material("glass", (0.3, 0.9, 0.6, 1.0), opacity=0.7, specular_intensity=0.3, specular_power=10.0)
+    scene = build_scene([(quad(-20, -8, -8, 8, -6.0), None, Material("post")), (q, None, glass)],
+                        lights=point_lights([((0.0, 2.0, -6.0), (2.0, 2.0, 2.0), 8.0)]))
+    frame = make_renderer(W, H).render(scene, cam)
+    exp, ok = expected(frame, scene, camera=cam)
+    beyond = (frame.triangle_id < 0) & (exp.fragment_count == 0)
+    layered = (frame.triangle_id < 0) & (exp.fragment_count > 0)
+    assert layered.sum() > 200 and beyond.sum() > 100
+    # the far plane cuts the glass: some of its pixels lie beyond it (the reference raster says where)
+    assert_matches_reference(frame, scene, exp, ok, "glass through the far plane")
+    assert np.all(frame.color[beyond] == 0) and np.all(frame.transmittance[beyond] == 1.0)
+    assert frame.color[layered].min() > 0
+
+
+def test_coplanar_layers_tie_order(make_renderer, device):
+    """Exactly coplanar layers (the same vertices): ordered by triangle id, then prim; depth peeling
+    peels them one by one and equals the A-buffer."""
+    size = SIZE
+    mats = [Material(f"c{k}", (*np.eye(3)[k % 3] * 0.8 + 0.1, 1.0), opacity=0.3 + 0.2 * k, specular_intensity=0.0)
+            for k in range(3)]
+    base = screen_quad(4, 28, 4, 28, 5.0)
+    parts = [(screen_quad(0, size, 0, size, 12.0), None, Material("wall", (1.0, 1.0, 1.0, 1.0)))]
+    parts += [(base, None, mats[k]) for k in (2, 0, 1)]           # ids 2-3 / 4-5 / 6-7: materials 2, 0, 1
+    scene = build_scene(parts, ambient=1.0)
+    abuf = make_renderer(size, size).render(scene, PX_CAM)
+    exp, ok = expected(abuf, scene, camera=PX_CAM, width=size, height=size)
+    assert (exp.fragment_count == 3).sum() == 24 * 24
+    assert_matches_reference(abuf, scene, exp, ok, "coplanar layers")
+    # the same layers listed in another order blend in that order (ties go to the lower id)
+    other = build_scene(parts[:1] + [(base, None, mats[k]) for k in (0, 1, 2)], ambient=1.0)
+    f2 = make_renderer(size, size).render(other, PX_CAM)
+    exp2, ok2 = expected(f2, other, camera=PX_CAM, width=size, height=size)
+    assert_matches_reference(f2, other, exp2, ok2, "coplanar layers, other order")
+    assert np.abs(exp2.color - exp.color).max() > 0.05, "the tie order must matter in this scene"
+    peeled = make_renderer(size, size, transparency="depth_peeling", peel_layers=3).render(scene, PX_CAM)
+    np.testing.assert_array_equal(peeled.color, abuf.color, err_msg="coplanar fragments must peel one by one")
+    np.testing.assert_array_equal(peeled.transmittance, abuf.transmittance)
+
+
+def test_coplanar_with_opaque_is_not_in_front(make_renderer, device):
+    """A glass with the opaque wall's own vertices has the same depths: not strictly in front, no fragment."""
+    size = SIZE
+    wall_q = screen_quad(0, size, 0, size, 8.0)
+    glass = Material("glass", (1.0, 0.0, 0.0, 1.0), opacity=0.5)
+    scene = build_scene([(wall_q, None, Material("wall")), (wall_q.copy(), None, glass),
+                         (screen_quad(8, 24, 8, 24, 6.0), None, glass)])
+    frame = make_renderer(size, size).render(scene, PX_CAM)
+    exp, ok = expected(frame, scene, camera=PX_CAM, width=size, height=size)
+    inner = np.zeros((size, size), bool)
+    inner[8:24, 8:24] = True
+    assert np.array_equal(exp.fragment_count, inner.astype(np.int32))
+    assert_matches_reference(frame, scene, exp, ok, "glass coplanar with the wall")
+
+
+def test_alpha_zero_texels_are_fragments(make_renderer, device):
+    """Alpha does not decide whether a fragment exists: a texture whose left half has alpha 0 gives
+    fragments over the whole quad, contributing nothing (T = 1) on that half."""
+    from clrender import Texture
+    size = SIZE
+    rgba = np.full((8, 8, 4), 255, np.uint8)
+    rgba[:, :4, 3] = 0
+    rgba[:, 4:, 3] = 128
+    q = screen_quad(8, 24, 8, 24, 4.0)
+    uv = np.array([[[0, 1], [1, 1], [1, 0]], [[0, 1], [1, 0], [0, 0]]], np.float32)   # matches screen_quad's corners
+    parts = [(screen_quad(0, size, 0, size, 8.0), None, Material("wall")),
+             (q, None, Material("decal", (1.0, 1.0, 1.0, 1.0), base_color_texture=0, alpha_mode="BLEND"))]
+    scene = build_scene(parts, uvs=np.concatenate([np.zeros((6, 2)), uv.reshape(-1, 2)]),
+                        textures=[Texture("half", rgba, wrap_s="clamp", wrap_t="clamp")])
+    frame = make_renderer(size, size).render(scene, PX_CAM)
+    inner = np.zeros((size, size), bool)
+    inner[8:24, 8:24] = True
+    np.testing.assert_array_equal(frame.fragment_count, inner.astype(np.int32))
+    left, right = inner.copy(), inner.copy()
+    left[:, 14:] = False                       # texel columns 0-3 (away from the bilinear seam)
+    right[:, :18] = False
+    np.testing.assert_array_equal(frame.transmittance[left], 1.0)
+    np.testing.assert_allclose(frame.transmittance[right], 1.0 - 128 / 255, atol=2e-3)
+    np.testing.assert_array_equal(frame.transmittance[~inner], 1.0)
+
+
+def test_ssao_does_not_apply_to_fragments(make_renderer, device):
+    """With SSAO the opaque colour carries ao, the fragments do not (ambient · albedo)."""
+    scene = random_soup(3, n_transparent=8)
+    scene.ambient = 0.4                                         # a visible ambient term
+    frame = make_renderer(W, H, ssao=True, ssao_radius=3.0).render(scene, CAMERA)
+    assert frame.ao.min() < 0.9, "the scene must be occluded somewhere"
+    opaque, info = ref_shading.shade_frame(frame, CAMERA, scene.lights, scene.ambient, details=True)
+    opaque -= frame.albedo * (np.float32(scene.ambient) * (1.0 - frame.ao.astype(np.float64)))[..., None]
+    exp = ref.blend(scene, CAMERA, W, H, opaque)
+    fg = frame.triangle_id >= 0
+    ok = ~exp.ambiguous & ~(fg & (info["min_abs_ndotl"] < 1e-4) & (exp.transmittance > 1e-3))
+    assert_matches_reference(frame, scene, exp, ok, "SSAO on")
+
+
+def textured_sphere(center, radius, n_lat=12, n_lon=24):
+    """(positions, faces, normals, uvs) of a UV sphere, counter-clockwise seen from outside."""
+    lat = np.linspace(0, np.pi, n_lat + 1)
+    lon = np.linspace(0, 2 * np.pi, n_lon + 1)
+    la, lo = np.meshgrid(lat, lon, indexing="ij")
+    normals = np.stack([np.sin(la) * np.cos(lo), np.cos(la), -np.sin(la) * np.sin(lo)], -1).reshape(-1, 3)
+    uvs = np.stack([lo / (2 * np.pi), la / np.pi], -1).reshape(-1, 2)
+    idx = np.arange((n_lat + 1) * (n_lon + 1)).reshape(n_lat + 1, n_lon + 1)
+    a, b, c, d = idx[:-1, :-1], idx[:-1, 1:], idx[1:, :-1], idx[1:, 1:]
+    faces = np.concatenate([np.stack([a, c, b], -1).reshape(-1, 3), np.stack([b, c, d], -1).reshape(-1, 3)])
+    return normals * radius + np.asarray(center), faces, normals, uvs
+
+
+def lit_sphere_scene(opacity):
+    """A textured single-sided sphere (opacity: BLEND when < 1) over nothing, an opaque box that
+    shadows part of it from the sun, a shadowed sun (cascades), a shadowed spot and point lights."""
+    from clrender import Texture
+    rng = np.random.default_rng(2)
+    rgba = np.full((16, 16, 4), 255, np.uint8)
+    rgba[..., :3] = np.where(((np.arange(16)[:, None] // 4 + np.arange(16)[None, :] // 4) % 2)[..., None] == 1,
+                             rng.integers(120, 255, 3), rng.integers(20, 120, 3))
+    sp, sf, sn, su = textured_sphere((0.0, 0.0, -5.0), 1.6)
+    box_p = np.array([[x, y, z] for x in (-2.6, -1.6) for y in (2.0, 2.6) for z in (-5.5, -4.5)], np.float64)
+    box_f = np.array([[0, 1, 3], [0, 3, 2], [4, 6, 7], [4, 7, 5], [0, 4, 5], [0, 5, 1], [2, 3, 7], [2, 7, 6],
+                      [0, 2, 6], [0, 6, 4], [1, 5, 7], [1, 7, 3]])
+    positions = np.concatenate([sp, box_p])
+    normals = np.concatenate([sn, box_p / np.linalg.norm(box_p, axis=1, keepdims=True)])
+    uvs = np.concatenate([su, np.zeros((len(box_p), 2))])
+    faces = np.concatenate([sf, box_f + len(sp)])
+    mats = [Material("glass", (1.0, 0.9, 0.8, 1.0), base_color_texture=0, specular_intensity=0.5,
+                     specular_power=24.0, double_sided=False, opacity=opacity),
+            Material("box", (0.6, 0.6, 0.6, 1.0))]
+    scene = Scene(positions, normals, uvs, faces, np.r_[np.zeros(len(sf), np.int32), np.ones(12, np.int32)], mats,
+                  textures=[Texture("checker", rgba)])
+    scene.ambient = 0.15
+    scene.set_sun((0.6, -1.0, -0.2), (1.2, 1.1, 1.0), shadow=True, shadow_map_size=512)
+    scene.add_spot_light((2.5, 1.5, -2.0), (-2.5, -1.5, -3.0), (4.0, 3.0, 2.0), 10.0, 15.0, 30.0, shadow=True,
+                         shadow_map_size=512)
+    scene.add_point_light((-1.5, -1.0, -2.5), (0.6, 0.8, 1.5), 5.0)
+    return scene
+
+
+def test_fragment_shading_matches_opaque_shading(make_renderer, device):
+    """A fragment is lit by the same code as an opaque pixel (sun and its cascades, shadowed spot,
+    point light, texture, specular): a 50 % glass sphere over nothing shows 0.5 × the colour of the
+    same sphere opaque, up to the G-buffer's quantization of the opaque one (normals, albedo)."""
+    glass = make_renderer(W, H).render(lit_sphere_scene(0.5), CAMERA)
+    solid = make_renderer(W, H).render(lit_sphere_scene(1.0), CAMERA)
+    n_sphere = 2 * 12 * 24
+    on = np.isin(solid.triangle_id, np.arange(n_sphere))
+    assert on.sum() > 300 and np.all(glass.fragment_count[on] == 1)
+    np.testing.assert_array_equal(glass.triangle_id[on], -1)
+    np.testing.assert_allclose(glass.transmittance[on], 0.5, rtol=1e-6)
+    assert glass.shadow.shape[-1] == solid.shadow.shape[-1] >= 2
+    # the sun's and the spot's shadows reach the sphere (so both lookups are exercised)
+    assert (solid.shadow[on] < 0.5).any(axis=0).all(), "sun and spot must each shadow part of the sphere"
+    peak = float(solid.color[on].max())
+    err = np.abs(2.0 * glass.color[on].astype(np.float64) - solid.color[on]).max(-1)
+    assert np.median(err) < 2e-3 * peak, f"median |2·glass - opaque| {np.median(err):.3g} (peak {peak:.3g})"
+    assert np.mean(err < 1e-2 * peak) > 0.97, (
+        f"{np.mean(err >= 1e-2 * peak):.1%} of sphere pixels differ by more than 1 % of the peak "
+        f"(worst {err.max():.3g}): fragments are not lit like opaque pixels")
+
+
+def test_tile_sizes_change_nothing(make_renderer, device):
+    """The raster tile size (8/16/32) changes neither the fragment lists' content nor their order."""
+    scene = random_soup(11, n_transparent=12)
+    frames = [make_renderer(W, H, tile_size=t).render(scene, CAMERA) for t in (8, 16, 32)]
+    for f in frames[1:]:
+        np.testing.assert_array_equal(f.fragment_count, frames[0].fragment_count)
+        np.testing.assert_array_equal(f.color, frames[0].color)
+        np.testing.assert_array_equal(f.transmittance, frames[0].transmittance)
+    peeled = [make_renderer(W, H, tile_size=t, transparency="depth_peeling", peel_layers=2).render(scene, CAMERA)
+              for t in (8, 32)]
+    np.testing.assert_array_equal(peeled[0].color, peeled[1].color)
+
+
+@pytest.mark.parametrize("size", [(37, 29), (61, 45)])
+def test_odd_image_sizes(make_renderer, device, size):
+    """Partial raster, light and resolve tiles at the image's right and bottom edges."""
+    w, h = size
+    for seed in (5, 6):
+        scene = random_soup(seed, n_transparent=12)
+        for opts in (dict(), dict(transparency="depth_peeling", peel_layers=3)):
+            frame = make_renderer(w, h, light_tile_size=16, **opts).render(scene, CAMERA)
+            exp, ok = expected(frame, scene, width=w, height=h, layers=opts.get("peel_layers"))
+            assert_matches_reference(frame, scene, exp, ok, f"{w}x{h}, soup {seed}, {opts}")
+
+
+def test_renderer_reuse_across_scenes(device):
+    """One renderer: a transparent scene, an opaque one, the transparent one again: nothing leaks
+    between frames (fragment lists, transmittance, grown buffers)."""
+    r = clrender.Renderer(W, H, device=device.id)
+    soup = random_soup(3, n_transparent=12)
+    first = r.render(soup, CAMERA)
+    opaque = build_scene([wall()], lights=soup.lights)
+    plain = r.render(opaque, CAMERA)
+    assert np.all(plain.fragment_count == 0) and np.all(plain.transmittance == 1.0)
+    fresh = clrender.Renderer(W, H, device=device.id).render(opaque, CAMERA)
+    np.testing.assert_array_equal(plain.color, fresh.color)
+    again = r.render(soup, CAMERA)
+    np.testing.assert_array_equal(again.color, first.color)
+    np.testing.assert_array_equal(again.fragment_count, first.fragment_count)
+    np.testing.assert_array_equal(again.transmittance, first.transmittance)
+
+
 SEEDS = (3, 11, 2024)
 
 
@@ -517,6 +730,9 @@ def test_abuffer_is_not_black(make_renderer, device, seed):
     visible = layered & (expect_change > 0.02 * exp.color.max())
     assert visible.sum() > 50
     assert np.all(change[visible] > 0.5 * expect_change[visible]), "transparent layers missing from the colour"
+    # the image is the tone-mapped blend
+    diff = np.abs(frame.image.astype(int) - ref_shading.tonemap(frame.color, "reinhard").astype(int))
+    assert diff.max() <= 1 and frame.image[layered].max() > 20
 
 
 @pytest.mark.parametrize("seed", SEEDS)
@@ -590,12 +806,21 @@ def test_200_fragments_per_pixel(device):
     for k, d in enumerate(depths):
         parts.append((screen_quad(6, 26, 4, 28, d), None, mats[k % len(mats)]))
     scene = build_scene(parts, lights=point_lights([((1.0, 0.5, -1.0), (2.0, 1.8, 1.5), 20.0)]))
-    frame = clrender.Renderer(size, size, device=device.id).render(scene, PX_CAM)
+    renderer = clrender.Renderer(size, size, device=device.id)
+    frame = renderer.render(scene, PX_CAM)
     exp, ok = expected(frame, scene, camera=PX_CAM, width=size, height=size)
     assert exp.fragment_count.max() == 200 and (exp.fragment_count == 200).sum() == 20 * 24
     assert exp.transmittance.min() > 1e-3, "every layer must count (no early stop)"
     assert_matches_reference(frame, scene, exp, ok, "200 layers")
     assert frame.stats.get("retries", 0) >= 1, "a fresh renderer's A-buffer must grow (retry) for 96000 fragments"
+    again = renderer.render(scene, PX_CAM)                    # the grown buffer: no retry, the same bits
+    assert again.stats.get("retries", 0) == 0
+    np.testing.assert_array_equal(again.color, frame.color)
+    np.testing.assert_array_equal(again.transmittance, frame.transmittance)
+    peeled = clrender.Renderer(size, size, device=device.id, transparency="depth_peeling",
+                               peel_layers=3).render(scene, PX_CAM)
+    exp3, ok3 = expected(peeled, scene, camera=PX_CAM, width=size, height=size, layers=3)
+    assert_matches_reference(peeled, scene, exp3, ok3, "200 layers, 3 peels")
 
 
 def test_more_than_a_million_fragments(device):
@@ -673,36 +898,74 @@ def test_screen_door_fraction(make_renderer, device, alpha):
     blocks = kept[8:40, 8:56].reshape(8, 4, 12, 4).sum(axis=(1, 3))
     assert blocks.min() == blocks.max(), f"pixels kept per 4x4 block: {np.unique(blocks)}"
     assert np.all(frame.fragment_count == 0) and np.all(frame.transmittance == 1.0)
+    # exactly the documented dither (the glass is material 1)
+    np.testing.assert_array_equal(kept[covered], screen_door_mask(alpha, 1, h, w)[covered])
     # kept pixels are shaded as opaque surfaces of the glass colour
     np.testing.assert_allclose(frame.albedo[kept], np.broadcast_to((1.0, 0.2, 0.2), (kept.sum(), 3)), atol=0.01)
 
 
-@pytest.mark.parametrize("materials", [(1, 2), (1, 3), (2, 5)])
-def test_screen_door_overlapping_layers(make_renderer, device, materials):
-    """Two overlapping 50 % quads of different materials: both show in the overlap."""
+BAYER4 = np.array([[0, 8, 2, 10], [12, 4, 14, 6], [3, 11, 1, 9], [15, 7, 13, 5]])
+
+
+def screen_door_mask(alpha, material, h, w):
+    """docs/transparency.md: kept where alpha >= (r + 0.5)/16, r = (bayer4x4[(y + 2(m & 1)) & 3][x & 3] + m) & 15."""
+    y, x = np.mgrid[0:h, 0:w]
+    r = (BAYER4[(y + 2 * (material & 1)) & 3, x & 3] + material) & 15
+    return np.float32(alpha) >= (r + 0.5) / 16
+
+
+def overlapping_quads(make_renderer, m_front, m_back, alpha):
+    """Two overlapping quads (materials m_front in front, m_back behind; materials 0..11 all of opacity
+    alpha, the wall 12) in screen-door mode: (triangle_id, overlap mask), the overlap 16x32 pixels."""
     cam = Camera.look_at((0, 0, 0), (0, 0, -1), fov_y_deg=90.0, near=0.1, far=50)
-    n_mats = max(materials) + 1
-    mats = [Material("wall", (0.5, 0.5, 0.5, 1.0))] + [Material(f"m{k}", (k / n_mats, 0.5, 0.2, 1.0), opacity=0.5)
-                                                        for k in range(1, n_mats)]
-    front = quad(-3, 1, -2, 2, -3.0)
+    mats = [Material(f"m{k}", (k / 12, 0.5, 0.2, 1.0), opacity=alpha) for k in range(12)]
+    mats.append(Material("wall", (0.5, 0.5, 0.5, 1.0)))
+    front = quad(-3, 1, -2, 2, -3.0)                            # pixels x 8..40, y 8..40
     back = quad(-1, 3, -2, 2, -5.0)
-    back[..., :2] *= 5.0 / 3.0                                  # same screen size as the front quad
+    back[..., :2] *= 5.0 / 3.0                                  # pixels x 24..56, y 8..40
     verts = np.concatenate([quad(-40, 40, -30, 30, -10.0), front, back])
     scene = Scene(verts.reshape(-1, 3), np.tile([0.0, 0.0, 1.0], (18, 1)), np.zeros((18, 2)),
-                  np.arange(18).reshape(-1, 3), np.array([0, 0, materials[0], materials[0], materials[1], materials[1]]),
-                  mats)
+                  np.arange(18).reshape(-1, 3), np.array([12, 12, m_front, m_front, m_back, m_back]), mats)
     frame = make_renderer(64, 48, transparency="screen_door").render(scene, cam)
-    ids = frame.triangle_id
-    # the overlap: both quads cover it (reference raster)
-    cov = [coverage_count(Scene(scene.positions, scene.normals, scene.uvs, scene.triangles[s], np.zeros(2, np.int32),
-                                [Material()]), cam, 64, 48) > 0 for s in (slice(2, 4), slice(4, 6))]
-    overlap = cov[0] & cov[1]
-    assert overlap.sum() >= 64
+    overlap = np.zeros((48, 64), bool)
+    overlap[8:40, 24:40] = True
+    return frame.triangle_id, overlap
+
+
+@pytest.mark.parametrize("materials", [(1, 2), (1, 3), (2, 5)])
+def test_screen_door_overlapping_layers(make_renderer, device, materials):
+    """Two overlapping 50 % quads of different materials: both show in the overlap, each where the
+    documented dither keeps it."""
+    ids, overlap = overlapping_quads(make_renderer, *materials, 0.5)
     in_front = np.isin(ids[overlap], (2, 3)).mean()
     in_back = np.isin(ids[overlap], (4, 5)).mean()
     assert in_front > 0.3, f"front quad (material {materials[0]}) kept at {in_front:.2f} of the overlap"
     assert in_back > 0.1, (f"back quad (material {materials[1]}) vanishes from the overlap ({in_back:.2f} of its "
                            f"pixels): both layers picked the same stipple pixels")
+    keep_front = screen_door_mask(0.5, materials[0], 48, 64)
+    keep_back = screen_door_mask(0.5, materials[1], 48, 64)
+    expect = np.where(keep_front, 2, np.where(keep_back, 4, -1))
+    got = np.where(np.isin(ids, (2, 3)), 2, np.where(np.isin(ids, (4, 5)), 4, -1))
+    np.testing.assert_array_equal(got[overlap], expect[overlap])
+
+
+def test_screen_door_every_material_pair(make_renderer, device):
+    """docs/transparency.md: over every pair of materials 0..11 and alpha 1/4, 1/2, 3/4, the back
+    layer shows in at least 1/16 of the overlap (and the front keeps round(16·alpha)/16 of it)."""
+    worst = {}
+    for alpha in (0.25, 0.5, 0.75):
+        for a in range(12):
+            for b in range(12):
+                if a == b:
+                    continue
+                ids, overlap = overlapping_quads(make_renderer, a, b, alpha)
+                front = np.isin(ids[overlap], (2, 3)).mean()
+                back = np.isin(ids[overlap], (4, 5)).mean()
+                assert front == alpha, f"materials {a}/{b}, alpha {alpha}: front keeps {front}"
+                worst[alpha] = min(worst.get(alpha, 1.0), back)
+                assert back >= 1 / 16, (f"alpha {alpha}: the back layer (material {b}) shows in {back:.3f} of the "
+                                        f"overlap behind material {a}")
+    assert min(worst.values()) >= 1 / 16
 
 
 # -- opaque scenes are unchanged -------------------------------------------------------------------------
@@ -727,6 +990,9 @@ def test_opaque_scene_identical_in_every_mode(make_renderer, device):
         np.testing.assert_array_equal(f.image, base.image, err_msg=mode)
         assert np.all(f.fragment_count == 0) and np.all(f.transmittance == 1.0), mode
         assert f.stats.get("transparent", 0) == 0
+        launched = [k for k in f.stats if k.endswith("_ms") and k.split("_")[0] in ("fragments", "abuffer", "peel",
+                                                                                    "composite")]
+        assert not launched, f"{mode}: an opaque scene launched transparency kernels: {launched}"
 
 
 # -- refraction ---------------------------------------------------------------------------------------
@@ -752,8 +1018,10 @@ def refraction_scene(tilt_deg, strength):
     return scene, normal, size
 
 
-def test_refraction_displaces_the_opaque_image(make_renderer, device):
-    strength = 0.08
+@pytest.mark.parametrize("strength", [0.08, 1.0])
+def test_refraction_displaces_the_opaque_image(make_renderer, device, strength):
+    """The opaque colour read behind each glass pixel is the opaque image's near p + s·height·(n_x, -n_y)
+    (clamped to the image: strength 1 reaches 27 pixels); depth peeling composites the same way."""
     scene, normal, size = refraction_scene(35.0, strength)
     cam = pixel_exact_camera(far=50.0)
     plain = make_renderer(size, size).render(scene, cam)
@@ -787,6 +1055,20 @@ def test_refraction_displaces_the_opaque_image(make_renderer, device):
             bad.append((y, x, v, lo, hi))
     assert not bad, (f"{len(bad)} of {layered.sum()} pixels read an opaque colour not found near p + "
                      f"({dx:.2f}, {dy:.2f}) px, e.g. (y, x, read, min, max) {bad[0]}")
+    peeled = make_renderer(size, size, refraction=True, transparency="depth_peeling", peel_layers=2).render(scene, cam)
+    np.testing.assert_array_equal(peeled.color, bent.color)
+    # seen from behind (reversed winding, double-sided): the normal faces the camera, the same offset
+    n_tri = scene.triangle_count
+    flipped_tris = scene.triangles.copy()
+    flipped_tris[n_tri - n_glass:] = flipped_tris[n_tri - n_glass:, ::-1]
+    flipped_normals = scene.normals.copy()
+    flipped_normals[scene.triangles[n_tri - n_glass:].ravel()] *= -1
+    flipped = Scene(scene.positions, flipped_normals, scene.uvs, flipped_tris, scene.triangle_material,
+                    scene.materials, ambient=scene.ambient)
+    assert ref.fragments(flipped, cam, size, size).backface.all()
+    back = make_renderer(size, size, refraction=True).render(flipped, cam)
+    np.testing.assert_array_equal(back.fragment_count, bent.fragment_count)
+    np.testing.assert_allclose(back.color, bent.color, rtol=0, atol=1e-5 * bent.color.max())
 
 
 def test_refraction_face_on_changes_nothing(make_renderer, device):
@@ -851,3 +1133,18 @@ def test_bad_opacity_is_a_scene_error(value):
 def test_mask_with_opacity_is_a_scene_error():
     with pytest.raises(SceneError, match="leaf"):
         Material("leaf", (1, 1, 1, 1), alpha_mode="MASK", opacity=0.5)
+
+
+@pytest.mark.parametrize("value", [float("nan"), -0.5])
+def test_bad_refraction_is_a_scene_error(value):
+    with pytest.raises(SceneError, match="prism"):
+        Material("prism", (1, 1, 1, 1), opacity=0.5, refraction=value)
+
+
+@pytest.mark.parametrize("option,value", [("transparency", "weighted_oit"), ("peel_layers", 0), ("peel_layers", 65),
+                                          ("peel_layers", 2.0), ("max_fragments_per_pixel", -1),
+                                          ("refraction", 1)])
+def test_bad_transparency_options(option, value):
+    from clrender.renderer import RenderConfig
+    with pytest.raises(ValueError, match=option):
+        RenderConfig.from_options(**{option: value})

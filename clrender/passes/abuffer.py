@@ -15,6 +15,7 @@ from .fragments import walk_args, walk_global_size
 
 SORT_GROUP = (8, 8)
 BYTES_PER_FRAGMENT = 8          # frag_depth float + frag_prim int
+MAX_FRAGMENTS = 2**31 - 1       # list offsets are 32-bit ints
 
 
 class AbufferPass(RenderPass):
@@ -53,6 +54,7 @@ class AbufferPass(RenderPass):
 
     def run(self, res):
         w, h = res["width"], res["height"]
+        self.list_len = res["frag_list_len"]
         with self.timed("scan"):
             self.scan(res["frag_list_len"], self.offsets, self.total, size=w * h, queue=self.queue)
         t, vec = self.walk.tile, self.walk.vec
@@ -72,10 +74,24 @@ class AbufferPass(RenderPass):
                                 self.layers.data)
 
     def overflows(self):
+        self._check_total()
         return [Overflow("fragments", self.total, self.capacity)]
 
+    def _check_total(self):
+        """The 32-bit prefix sum wraps past 2^31 fragments: when the frame could hold that many
+        (tile-list entries × pixels per tile), count them exactly on the host and refuse."""
+        entries = int(self.walk.binning.total.get(queue=self.queue)[0])
+        if entries * self.walk.tile ** 2 <= MAX_FRAGMENTS:
+            return
+        total = int(self.list_len.get(queue=self.queue).sum(dtype=np.int64))
+        if total > MAX_FRAGMENTS:
+            from ..memory import DeviceMemoryError
+            raise DeviceMemoryError(f"the frame has {total} transparent fragments; the A-buffer holds at most "
+                                    f"{MAX_FRAGMENTS} (2^31 - 1): render at a smaller size or set "
+                                    f"max_fragments_per_pixel")
+
     def grow(self, name, needed):
-        capacity = round_up(needed + needed // 4, 4096)
+        capacity = min(round_up(needed + needed // 4, 4096), MAX_FRAGMENTS)
         from ..memory import check_buffer
         check_buffer(self.device, "the A-buffer's fragment lists", needed, BYTES_PER_FRAGMENT, capacity)
         self._allocate_fragments(capacity)
