@@ -163,10 +163,6 @@ def fragments(scene, camera, width: int, height: int) -> Fragments:
     near = F32(camera.near)
     pieces = np.bincount(prims.tri, minlength=len(tris)) if len(prims) else np.zeros(len(tris), np.int64)
 
-    eye = np.asarray(camera.eye, np.float64)
-    dirs_img = shading.pixel_directions(camera, W, H)
-    world = np.asarray(scene.positions, np.float64)
-
     out = {k: [] for k in ("row", "col", "z", "tri", "prim", "bary", "backface", "clipped")}
     for n in np.flatnonzero(prim_blend):
         r, c, z = prim_fragments(prims.X[n], prims.Y[n], prims.w[n], prims.area[n], W, H, far)
