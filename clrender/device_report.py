@@ -31,7 +31,9 @@ def build_every_kernel(d) -> None:
     device = Device.get(d)
     for source in sorted(kernels_dir().glob("*.cl")):
         device.program(source.name)
-    Renderer(8, 8, device=d, ssao=True)
+    Renderer(8, 8, device=d, ssao=True)               # with the A-buffer
+    Renderer(8, 8, device=d, transparency="depth_peeling", refraction=True)
+    Renderer(8, 8, device=d, max_fragments_per_pixel=4)   # the capped fill
 
 
 def format_bytes(n) -> str:
