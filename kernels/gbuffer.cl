@@ -1,11 +1,11 @@
 /* gbuffer.cl: resolve the visibility buffer into the packed G-buffer.
  *
- * Algorithm: each work-item owns VEC consecutive pixels (see vec.h). Per lane it gathers the
- * winning prim; then, as VEC-wide vector math: the prim's edge functions at the pixel center
- * and its right and lower neighbours give perspective-correct barycentrics in the input
- * triangle and their screen derivatives; from them the interpolated world normal (flipped
- * on visible back faces), UVs and a trilinear base-color sample (LOD from the derivatives,
- * texels gathered per lane), the material's specular terms, linear depth = view depth / far,
+ * Algorithm: each work-item owns VEC consecutive pixels (see vec.h). Per lane it takes the
+ * winning prim; surface_vec.h evaluates, as VEC-wide vector math, its surface there (the
+ * barycentrics from the prim's edge functions at the pixel center and its right and lower
+ * neighbours, the interpolated world normal flipped on visible back faces, a trilinear
+ * base-color sample with the LOD from the derivatives, the material's specular terms: the
+ * same code shades transparent fragments, forward.h); then linear depth = view depth / far
  * and the motion against the previous frame's view-projection. Everything is packed per
  * the layout table (clrender/gbuffer.py, kernels/gbuffer.h).
  *
