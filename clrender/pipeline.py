@@ -9,6 +9,7 @@ import pyopencl.array as cla
 
 from . import gbuffer as layout
 from .passes.base import zeros
+from .passes.encode import EncodePass
 from .passes import (AbufferPass, BinningPass, CompositePass, FragmentsPass, GBufferPass, LightCullPass,
                      ParticlesPass, PeelPass, RasterPass, Resources, SetupPass, ShadePass, ShadowPass, SsaoBlurPass,
                      SsaoPass, TonemapPass)
@@ -46,13 +47,29 @@ class Pipeline:
         self.shadow = ShadowPass(device, config) if config.shadows else None
         if self.shadow is not None:
             self.passes.append(self.shadow)
-        self.passes += [ShadePass(device, config), *self.transparency[1:], TonemapPass(device, config)]
+        self.passes += [ShadePass(device, config), *self.transparency[1:]]
+        self.passes += self._post_passes(device, config)
         self._check_wiring()
         self.size = None
         self.transparency_size = None
         self.matrices = {name: zeros(self.queue, 16, np.float32)
                          for name in ("view_proj", "prev_view_proj", "view_matrix", "camera_params")}
         self.constants = {"srgb_encode": cla.to_device(self.queue, layout.srgb_encode_table())}
+
+    @staticmethod
+    def _post_passes(device, config) -> list:
+        """Tone mapping and the LDR post chain (docs/post.md): tonemap -> edge AA -> FXAA -> encode;
+        without LDR effects one tonemap kernel writes the image."""
+        if not config.ldr_effects:
+            return [TonemapPass(device, config)]
+        chain = [TonemapPass(device, config, ldr=True)]
+        if config.edge_aa:
+            from .passes.edge_aa import EdgeAaPass
+            chain.append(EdgeAaPass(device, config))
+        if config.color_aa == "fxaa":
+            from .passes.fxaa import FxaaPass
+            chain.append(FxaaPass(device, config))
+        return chain + [EncodePass(device, config)]
 
     def _check_wiring(self):
         produced = {"positions", "normals", "uvs", "triangles", "tri_material", "materials", "texels",
@@ -139,6 +156,8 @@ class Pipeline:
                    else np.ones((height, width), np.float32)),
             "fragment_count": np.zeros((height, width), np.int32),
             "transmittance": np.ones((height, width), np.float32),
+            "edges": (res["edges"].get(queue=self.queue).reshape(height, width) if self.config.edge_aa
+                      else np.zeros((height, width), np.uint8)),
         }
         if transparent:
             outputs["fragment_count"] = self.transparency[0].frag_count.get(queue=self.queue).reshape(height, width)

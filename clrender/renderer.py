@@ -18,6 +18,8 @@ LIGHT_CULLING = ("tiled", "brute_force")
 TONEMAPS = ("reinhard", "aces", "clamp")
 SHADOW_FILTERS = ("pcf3x3", "poisson", "hard")
 TRANSPARENCY = ("abuffer", "depth_peeling", "screen_door")
+SUPERSAMPLE_FILTERS = ("box", "lanczos2", "mitchell")
+COLOR_AA = ("none", "fxaa")
 MAX_PEEL_LAYERS = 64
 
 
@@ -52,6 +54,12 @@ class RenderConfig:
     peel_layers: int = 4             # depth_peeling: layers peeled per pixel (1..64)
     max_fragments_per_pixel: int = 0   # abuffer: keep only the K nearest fragments (0 = all; drops are counted)
     refraction: bool = False         # distort what lies behind transparent surfaces by their materials' refraction
+    supersample: int = 1             # render at k·W × k·H and filter down in linear HDR (1..4; docs/post.md)
+    supersample_filter: str = "box"  # "box", "lanczos2" or "mitchell" (separable, radius 2 output pixels)
+    edge_aa: bool = False            # the report's edge-smoothing filter on the tone-mapped image
+    edge_depth_threshold: float = 0.05   # edge_aa: relative view-depth jump that marks an edge
+    edge_normal_threshold_deg: float = 30.0   # edge_aa: normal angle that marks an edge
+    color_aa: str = "none"           # "fxaa": luminance-edge anti-aliasing of the tone-mapped image
 
     def __post_init__(self):
         if self.tile_size not in TILE_SIZES:
@@ -75,6 +83,28 @@ class RenderConfig:
             raise ValueError(f"ssao_strength must be a number >= 0, got {self.ssao_strength!r}")
         self._check_shadow_options()
         self._check_transparency_options()
+        self._check_aa_options()
+
+    def _check_aa_options(self):
+        if not (isinstance(self.supersample, (int, np.integer)) and not isinstance(self.supersample, bool)
+                and 1 <= self.supersample <= 4):
+            raise ValueError(f"supersample must be an integer in [1, 4], got {self.supersample!r}")
+        if self.supersample_filter not in SUPERSAMPLE_FILTERS:
+            raise ValueError(f"supersample_filter must be one of {SUPERSAMPLE_FILTERS}, got {self.supersample_filter!r}")
+        if not isinstance(self.edge_aa, bool):
+            raise ValueError(f"edge_aa must be True or False, got {self.edge_aa!r}")
+        if not (_is_real(self.edge_depth_threshold) and np.isfinite(self.edge_depth_threshold)
+                and self.edge_depth_threshold > 0):
+            raise ValueError(f"edge_depth_threshold must be a positive number, got {self.edge_depth_threshold!r}")
+        if not (_is_real(self.edge_normal_threshold_deg) and 0 < self.edge_normal_threshold_deg <= 180):
+            raise ValueError(f"edge_normal_threshold_deg must be in (0, 180], got {self.edge_normal_threshold_deg!r}")
+        if self.color_aa not in COLOR_AA:
+            raise ValueError(f"color_aa must be one of {COLOR_AA}, got {self.color_aa!r}")
+
+    @property
+    def ldr_effects(self) -> bool:
+        """Post effects on the tone-mapped image (then tone mapping and encoding are separate passes)."""
+        return self.edge_aa or self.color_aa != "none"
 
     def _check_transparency_options(self):
         if self.transparency not in TRANSPARENCY:
@@ -130,10 +160,12 @@ class Frame:
     shadow: np.ndarray          # (H, W, K) float32 visibility per shadowed light (sun first), K = 0 without
     fragment_count: np.ndarray  # (H, W) int32 transparent fragments in front of the opaque surface (A-buffer, peeling)
     transmittance: np.ndarray   # (H, W) float32 what the transparent layers leave of what lies behind (1 = nothing)
+    edges: np.ndarray           # (H, W) uint8 1 where edge_aa marked an edge pixel (all 0 without edge_aa)
     stats: dict = field(default_factory=dict)
 
     AOV_NAMES = ("color", "light_count", "depth", "linear_depth", "normal", "albedo", "triangle_id", "velocity",
-                 "specular_intensity", "specular_power", "ao", "shadow", "fragment_count", "transmittance", "image")
+                 "specular_intensity", "specular_power", "ao", "shadow", "fragment_count", "transmittance", "edges",
+                 "image")
 
     @property
     def height(self) -> int:
@@ -246,4 +278,5 @@ class Renderer:
         stats["time"] = float(time)
         return Frame(gbuffer=out["gbuffer"], far=camera.far, color=out["color"], light_count=out["light_count"],
                      image=np.ascontiguousarray(out["image"]), ao=out["ao"], shadow=out["shadow"],
-                     fragment_count=out["fragment_count"], transmittance=out["transmittance"], stats=stats)
+                     fragment_count=out["fragment_count"], transmittance=out["transmittance"], edges=out["edges"],
+                     stats=stats)

@@ -4,8 +4,10 @@
  * operator chosen at build time (TONEMAP 0: clamp, 1: Reinhard c/(1+c), 2: ACES fitted,
  * Narkowicz 2015), then sRGB encoding to 8 bits (gbuffer.h's encoder).
  *
+ * `tonemap_ldr` stops before the encoding when LDR post effects follow (docs/post.md).
+ *
  * Buffers: color float[3][H·W] linear HDR planes; srgb_encode float2[4096]; out: image uint[H·W] RGBA8 (R low byte,
- * alpha 255).
+ * alpha 255), or (tonemap_ldr) ldr float[3][H·W] tone-mapped linear values in [0, 1].
  * Work-groups: 1-D, any size; no barriers.
  */
 #include "gbuffer.h"
@@ -42,6 +44,24 @@ kernel void tonemap_image(global const float* color, int npix, float exposure, c
             uintV rgb = pack_srgb8x3V(tonemap(r * exposure), tonemap(g * exposure), tonemap(b * exposure),
                                       srgb_encode);
             image[p] = (uint)LANE_I(rgb, 0) | 0xff000000u;
+        }
+    }
+}
+
+/* With LDR post effects (edge AA, FXAA; docs/post.md): the tone-mapped values, still linear,
+ * as float planes for those passes; encode.cl makes the image afterwards. */
+kernel void tonemap_ldr(global const float* color, int npix, float exposure, global float* ldr)
+{
+    const int p0 = get_global_id(0) * VEC;
+    if (p0 >= npix) return;
+    for (int c = 0; c < 3; ++c) {
+        if (p0 + VEC <= npix) {
+            vstoreV(tonemap(vloadV(0, color + c * npix + p0) * exposure), 0, ldr + c * npix + p0);
+        } else {
+            for (int p = p0; p < npix; ++p) {
+                floatV v = tonemap((floatV)(color[c * npix + p] * exposure));
+                ldr[c * npix + p] = LANE_F(v, 0);
+            }
         }
     }
 }

@@ -11,23 +11,27 @@ OPERATORS = {"clamp": 0, "reinhard": 1, "aces": 2}
 
 
 class TonemapPass(RenderPass):
+    """ldr=False: HDR colour -> image in one kernel. ldr=True (LDR post effects follow): the
+    tone-mapped linear planes `ldr`, which EncodePass turns into the image."""
     name = "tonemap"
     inputs = ("color", "srgb_encode")
-    outputs = ("image",)
 
-    def __init__(self, device, config):
+    def __init__(self, device, config, ldr: bool = False):
         super().__init__(device, config)
+        self.ldr = ldr
+        self.outputs = ("ldr",) if ldr else ("image",)
         self.vec = capabilities.pixel_vector_width(device.cl_device)
-        self.kernel = device.kernel("tonemap.cl", "tonemap_image", {**layout.kernel_defines(), "VEC": self.vec,
-                                                                   "TONEMAP": OPERATORS[config.tonemap]})
+        self.kernel = device.kernel("tonemap.cl", "tonemap_ldr" if ldr else "tonemap_image",
+                                    {**layout.kernel_defines(), "VEC": self.vec, "TONEMAP": OPERATORS[config.tonemap]})
 
     def allocate(self, width, height):
-        self.image = empty(self.queue, width * height, np.uint32)
+        self.out = empty(self.queue, (3 if self.ldr else 1) * width * height, np.float32 if self.ldr else np.uint32)
 
     def publish(self, res):
-        res.buffers["image"] = self.image
+        res.buffers[self.outputs[0]] = self.out
 
     def run(self, res):
         npix = res["width"] * res["height"]
+        extra = () if self.ldr else (res["srgb_encode"].data,)
         self.kernel(self.queue, (round_up(-(-npix // self.vec), 64),), None, res["color"].data, np.int32(npix),
-                    np.float32(self.config.exposure), res["srgb_encode"].data, self.image.data)
+                    np.float32(self.config.exposure), *extra, self.out.data)

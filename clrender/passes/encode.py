@@ -1,0 +1,32 @@
+"""Encode pass (kernels/encode.cl): the LDR planes -> 8-bit sRGB image, after the LDR post
+effects (docs/post.md). Only in the pipeline when one of them is on; otherwise tonemap.cl
+encodes directly."""
+from __future__ import annotations
+
+import numpy as np
+
+from .. import capabilities
+from .. import gbuffer as layout
+from .base import RenderPass, empty, round_up
+
+
+class EncodePass(RenderPass):
+    name = "encode"
+    inputs = ("ldr", "srgb_encode")
+    outputs = ("image",)
+
+    def __init__(self, device, config):
+        super().__init__(device, config)
+        self.vec = capabilities.pixel_vector_width(device.cl_device)
+        self.kernel = device.kernel("encode.cl", "encode_image", {**layout.kernel_defines(), "VEC": self.vec})
+
+    def allocate(self, width, height):
+        self.image = empty(self.queue, width * height, np.uint32)
+
+    def publish(self, res):
+        res.buffers["image"] = self.image
+
+    def run(self, res):
+        npix = res["width"] * res["height"]
+        self.kernel(self.queue, (round_up(-(-npix // self.vec), 64),), None, res["ldr"].data, np.int32(npix),
+                    res["srgb_encode"].data, self.image.data)
