@@ -46,7 +46,12 @@ def check_buffer(device, what: str, entries: int, bytes_per_entry: int, capacity
 def estimate(width: int, height: int, config, scene=None) -> dict:
     """{"total": bytes, "largest": bytes of the biggest single buffer, "largest_name": its name}
     for the per-resolution buffers of every pass, plus the scene upload when `scene` is given.
-    Mirrors the allocate()/prepare_scene() sizes in clrender/passes/ (initial list capacities)."""
+    Mirrors the allocate()/prepare_scene() sizes in clrender/passes/ (initial list capacities).
+    With supersample k the passes before the resolve hold k²-sized buffers (counted at the
+    internal size, which covers the post chain's smaller ones), plus the resolve's own."""
+    k = getattr(config, "supersample", 1)
+    out_w, out_h = int(width), int(height)
+    width, height = k * out_w, k * out_h
     px = int(width) * int(height)
     tiles = -(-width // config.tile_size) * -(-height // config.tile_size)
     buffers = {
@@ -83,6 +88,8 @@ def estimate(width: int, height: int, config, scene=None) -> dict:
                 m.alpha_mode == "BLEND" for m in scene.materials):
             from .scene_gpu import transparent_triangle_count
             buffers.update(_transparency(px, tiles, t, transparent_triangle_count(scene), config))
+    if k > 1:
+        buffers["resolve.rows+color+gbuffer"] = 12 * out_w * height + (12 + 4 * len(layout.PLANES)) * out_w * out_h
     name = max(buffers, key=buffers.get)
     return {"total": sum(buffers.values()), "largest": buffers[name], "largest_name": name}
 
@@ -105,7 +112,9 @@ def check(device, width: int, height: int, config, scene=None) -> dict:
     """`estimate()`, raising DeviceMemoryError when it exceeds the device's limits."""
     need = estimate(width, height, config, scene)
     total, max_alloc = limits(device.cl_device)
-    what = f"{width}x{height}" + ("" if scene is None else f" with {scene.triangle_count} triangles")
+    k = getattr(config, "supersample", 1)
+    what = f"{width}x{height}" + (f" at supersample {k} ({k * width}x{k * height} internally)" if k > 1 else "") \
+        + ("" if scene is None else f" with {scene.triangle_count} triangles")
     if need["total"] > total:
         raise DeviceMemoryError(
             f"{what} needs about {need['total']} bytes ({_gb(need['total'])}) of device memory but "

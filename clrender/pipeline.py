@@ -10,6 +10,7 @@ import pyopencl.array as cla
 from . import gbuffer as layout
 from .passes.base import zeros
 from .passes.encode import EncodePass
+from .passes.resolve import ResolvePass
 from .passes import (AbufferPass, BinningPass, CompositePass, FragmentsPass, GBufferPass, LightCullPass,
                      ParticlesPass, PeelPass, RasterPass, Resources, SetupPass, ShadePass, ShadowPass, SsaoBlurPass,
                      SsaoPass, TonemapPass)
@@ -48,7 +49,9 @@ class Pipeline:
         if self.shadow is not None:
             self.passes.append(self.shadow)
         self.passes += [ShadePass(device, config), *self.transparency[1:]]
-        self.passes += self._post_passes(device, config)
+        # Over-sampling: everything so far renders k·W × k·H; the resolve filters down to W × H.
+        self.post = ([ResolvePass(device, config)] if config.supersample > 1 else []) + self._post_passes(device, config)
+        self.passes += self.post
         self._check_wiring()
         self.size = None
         self.transparency_size = None
@@ -85,14 +88,17 @@ class Pipeline:
             produced |= set(p.outputs)
 
     def resize(self, width, height, transparent: bool = False):
+        """Passes before the resolve at the internal size (k·width × k·height), the post chain at
+        (width, height)."""
+        k = self.config.supersample
         if self.size != (width, height):
             for p in self.passes:
                 if p not in self.transparency:
-                    p.allocate(width, height)
+                    p.allocate(*((width, height) if p in self.post else (k * width, k * height)))
             self.size = (width, height)
         if transparent and self.transparency_size != (width, height):
             for p in self.transparency:
-                p.allocate(width, height)
+                p.allocate(k * width, k * height)
             self.transparency_size = (width, height)
 
     def _set_camera(self, camera, width, height, prev_camera):
@@ -117,7 +123,9 @@ class Pipeline:
         res = Resources(buffers=dict(scene_res.buffers), values=dict(scene_res.values))
         res.buffers.update(self.matrices)
         res.buffers.update(self.constants)
-        res.values.update(self._set_camera(camera, width, height, prev_camera), time=float(time), camera=camera)
+        k = self.config.supersample
+        internal = self._set_camera(camera, k * width, k * height, prev_camera)
+        res.values.update(internal, time=float(time), camera=camera)
         for p in self.passes:
             if transparent or p not in self.transparency:
                 p.prepare_scene(scene_res)
@@ -125,6 +133,7 @@ class Pipeline:
         retries = 0
         while True:
             timings = []
+            res.values.update(width=k * width, height=k * height)     # the resolve switches to the output size
             for p in self.transparency:
                 p.clear_stage_events()
             for p in self.passes:
@@ -145,24 +154,29 @@ class Pipeline:
             if retries > MAX_RETRIES:
                 raise RuntimeError(f"buffers kept overflowing after {MAX_RETRIES} retries: {grown}")
 
+        iw, ih = k * width, k * height            # the AOVs rendered before the resolve: its nearest sample
+
+        def internal(buf, planes=1):
+            a = buf.get(queue=self.queue)[: planes * iw * ih].reshape(planes, ih, iw)
+            return np.ascontiguousarray(a[:, k // 2::k, k // 2::k]) if k > 1 else a
+
         outputs = {
             "gbuffer": res["gbuffer"].get(queue=self.queue).reshape(len(layout.PLANES), height, width),
             "color": np.moveaxis(res["color"].get(queue=self.queue).reshape(3, height, width), 0, -1),
-            "light_count": res["light_count"].get(queue=self.queue).reshape(height, width),
+            "light_count": internal(res["light_count"])[0],
             "image": res["image"].get(queue=self.queue).reshape(height, width, 1).view(np.uint8)[..., :3],
-            "shadow": self._shadow_planes(res, width, height),
+            "shadow": self._shadow_planes(res, internal),
             # Without SSAO no kernel runs: the term is 1 everywhere, made here.
-            "ao": (res["ao"].get(queue=self.queue).reshape(height, width) if self.config.ssao
-                   else np.ones((height, width), np.float32)),
+            "ao": internal(res["ao"])[0] if self.config.ssao else np.ones((height, width), np.float32),
             "fragment_count": np.zeros((height, width), np.int32),
             "transmittance": np.ones((height, width), np.float32),
             "edges": (res["edges"].get(queue=self.queue).reshape(height, width) if self.config.edge_aa
                       else np.zeros((height, width), np.uint8)),
         }
         if transparent:
-            outputs["fragment_count"] = self.transparency[0].frag_count.get(queue=self.queue).reshape(height, width)
-            n = width * height                      # only the transmittance plane of the layers
-            outputs["transmittance"] = res["layers"][3 * n: 4 * n].get(queue=self.queue).reshape(height, width)
+            outputs["fragment_count"] = internal(self.transparency[0].frag_count)[0]
+            n = iw * ih                             # only the transmittance plane of the layers
+            outputs["transmittance"] = internal(res["layers"][3 * n: 4 * n])[0]
         stats = {f"{name}_ms": (end.profile.end - start.profile.start) * 1e-6 for name, start, end in timings}
         stats["total_ms"] = sum(stats.values())
         stats.update(self.passes[0].triangle_stats())
@@ -170,6 +184,7 @@ class Pipeline:
         stats["tile_entries"] = int(self.passes[1].total.get(queue=self.queue)[0])
         stats["tile_size"] = self.config.tile_size
         stats["retries"] = retries
+        stats["supersample"] = k
         stats.update(self._fragment_stats(outputs["fragment_count"], transparent))
         for p in self.transparency if transparent else ():
             stats.update(p.stage_stats())         # breakdowns of their pass's ms, not added to total_ms
@@ -193,13 +208,13 @@ class Pipeline:
         return {"fragments": total, "fragments_max": int(counts.max()) if counts.size else 0,
                 "fragments_dropped": total - kept}
 
-    def _shadow_planes(self, res, width, height) -> np.ndarray:
+    def _shadow_planes(self, res, internal) -> np.ndarray:
         """Frame.shadow: (H, W, K) visibility, K = shadow planes (0 without shadows)."""
         k = res["shadow_planes"]
+        w, h = res["width"], res["height"]
         if not k:
-            return np.ones((height, width, 0), np.float32)
-        planes = res["shadow"].get(queue=self.queue)[: k * height * width].reshape(k, height, width)
-        return np.ascontiguousarray(np.moveaxis(planes, 0, -1))
+            return np.ones((h, w, 0), np.float32)
+        return np.ascontiguousarray(np.moveaxis(internal(res["shadow"], k), 0, -1))
 
     def _grow_overflowing(self) -> list:
         grown = []

@@ -238,6 +238,10 @@ class Renderer:
             raise ValueError("pass either config= or keyword options, not both")
         self.width, self.height = int(width), int(height)
         self.config = config or RenderConfig.from_options(**options)
+        k = self.config.supersample
+        if (k * self.width) * (k * self.height) * 6 >= 2**31:      # kernels index up to 6 planes with 32-bit ints
+            raise ValueError(f"{self.width}x{self.height} at supersample {k} is {k * self.width}x{k * self.height} "
+                             f"internally, too many pixels for 32-bit buffer offsets; lower supersample or the size")
         self.device = Device.get(device)
         from . import memory
         memory.check(self.device, self.width, self.height, self.config)   # before building or allocating
