@@ -61,17 +61,28 @@ class Pipeline:
 
     @staticmethod
     def _post_passes(device, config) -> list:
-        """Tone mapping and the LDR post chain (docs/post.md): tonemap -> edge AA -> FXAA -> encode;
-        without LDR effects one tonemap kernel writes the image."""
+        """The post chain at the output resolution (docs/post.md): bloom -> motion blur (HDR) ->
+        tone map -> edge AA -> FXAA -> hatching (LDR) -> encode; without LDR effects one tonemap
+        kernel writes the image. A disabled effect has no pass."""
+        chain = []
+        if config.bloom:
+            from .passes.bloom import BloomPass
+            chain.append(BloomPass(device, config))
+        if config.motion_blur:
+            from .passes.motion_blur import MotionBlurPass
+            chain.append(MotionBlurPass(device, config))
         if not config.ldr_effects:
-            return [TonemapPass(device, config)]
-        chain = [TonemapPass(device, config, ldr=True)]
+            return chain + [TonemapPass(device, config)]
+        chain.append(TonemapPass(device, config, ldr=True))
         if config.edge_aa:
             from .passes.edge_aa import EdgeAaPass
             chain.append(EdgeAaPass(device, config))
         if config.color_aa == "fxaa":
             from .passes.fxaa import FxaaPass
             chain.append(FxaaPass(device, config))
+        if config.hatching:
+            from .passes.hatching import HatchingPass
+            chain.append(HatchingPass(device, config))
         return chain + [EncodePass(device, config)]
 
     def _check_wiring(self):

@@ -60,6 +60,16 @@ class RenderConfig:
     edge_depth_threshold: float = 0.05   # edge_aa: relative view-depth jump that marks an edge
     edge_normal_threshold_deg: float = 30.0   # edge_aa: normal angle that marks an edge
     color_aa: str = "none"           # "fxaa": luminance-edge anti-aliasing of the tone-mapped image
+    bloom: bool = False              # what saturates (HDR colour above bloom_threshold), blurred and added back
+    bloom_threshold: float = 1.0     # linear HDR level above which colour blooms
+    bloom_strength: float = 0.1      # the bloom adds strength × the thresholded energy
+    bloom_radius: float = 16.0       # output pixels: the blur's reach (a mip pyramid keeps large radii cheap)
+    motion_blur: bool = False        # HDR colour sampled along the (smoothed) per-pixel velocity
+    shutter: float = 0.5             # motion blur: exposure as a fraction of the frame interval
+    motion_blur_samples: int = 8     # motion blur: samples along the velocity
+    hatching: bool = False           # the report's non-photorealistic post effect (tonal art maps)
+    hatching_scale: float = 1.0      # hatching: stroke texture scale (1 = one texel per pixel at the finest level)
+    hatching_saturation: float = 0.3   # hatching: colour kept (0 = black ink on white, 1 = full colour)
 
     def __post_init__(self):
         if self.tile_size not in TILE_SIZES:
@@ -100,11 +110,27 @@ class RenderConfig:
             raise ValueError(f"edge_normal_threshold_deg must be in (0, 180], got {self.edge_normal_threshold_deg!r}")
         if self.color_aa not in COLOR_AA:
             raise ValueError(f"color_aa must be one of {COLOR_AA}, got {self.color_aa!r}")
+        self._check_post_options()
+
+    def _check_post_options(self):
+        for name in ("bloom", "motion_blur", "hatching"):
+            if not isinstance(getattr(self, name), bool):
+                raise ValueError(f"{name} must be True or False, got {getattr(self, name)!r}")
+        for name, lo, lo_open in (("bloom_threshold", 0.0, False), ("bloom_strength", 0.0, False),
+                                  ("bloom_radius", 0.0, True), ("shutter", 0.0, True), ("hatching_scale", 0.0, True)):
+            v = getattr(self, name)
+            if not (_is_real(v) and np.isfinite(v) and (v > lo if lo_open else v >= lo)):
+                raise ValueError(f"{name} must be a number {'>' if lo_open else '>='} {lo}, got {v!r}")
+        if not (_is_real(self.hatching_saturation) and 0.0 <= self.hatching_saturation <= 1.0):
+            raise ValueError(f"hatching_saturation must be in [0, 1], got {self.hatching_saturation!r}")
+        n = self.motion_blur_samples
+        if not (isinstance(n, (int, np.integer)) and not isinstance(n, bool) and 2 <= n <= 64):
+            raise ValueError(f"motion_blur_samples must be an integer in [2, 64], got {n!r}")
 
     @property
     def ldr_effects(self) -> bool:
         """Post effects on the tone-mapped image (then tone mapping and encoding are separate passes)."""
-        return self.edge_aa or self.color_aa != "none"
+        return self.edge_aa or self.color_aa != "none" or self.hatching
 
     def _check_transparency_options(self):
         if self.transparency not in TRANSPARENCY:
