@@ -137,3 +137,21 @@ def test_bad_supersample(bad):
         clrender.RenderConfig(supersample=bad)
     with pytest.raises(ValueError, match="supersample_filter"):
         clrender.RenderConfig(supersample_filter="gauss")
+
+
+@pytest.mark.oclgrind
+@pytest.mark.parametrize("name", ["box", "lanczos2"])
+def test_resolve_kernels_tiny_frame(device, capfd, name):
+    """Oclgrind tier: resolve_rows/resolve_cols/decimate_gbuffer on a 12x8 frame at supersample 2
+    (odd sizes of the internal frame's tiles), against the NumPy filter and nearest sample."""
+    from test_oclgrind_tier import assert_no_device_diagnostics
+    scene = hard_edged_scene()
+    prev = Camera.look_at((0.2, 0, 0), (0.2, 0, -1), fov_y_deg=70.0, near=0.1, far=50.0)
+    big = clrender.Renderer(24, 16, device=device.id).render(scene, CAMERA, previous_camera=prev)
+    frame = clrender.Renderer(12, 8, device=device.id, supersample=2, supersample_filter=name).render(
+        scene, CAMERA, previous_camera=prev)
+    np.testing.assert_allclose(frame.color, resolve_reference(big.color, name, 2), rtol=0,
+                               atol=2e-6 * float(big.color.max()))
+    np.testing.assert_array_equal(frame.triangle_id, big.triangle_id[1::2, 1::2])
+    np.testing.assert_array_equal(frame.velocity, (big.velocity[1::2, 1::2] / 2).astype(np.float16).astype(np.float32))
+    assert_no_device_diagnostics(capfd)
