@@ -88,6 +88,12 @@ def estimate(width: int, height: int, config, scene=None) -> dict:
                 m.alpha_mode == "BLEND" for m in scene.materials):
             from .scene_gpu import transparent_triangle_count
             buffers.update(_transparency(px, tiles, t, transparent_triangle_count(scene), config))
+    if getattr(config, "bloom", False):                  # at the output size (after the resolve)
+        from .passes.bloom import bloom_levels, level_sizes
+        levels, _, taps = bloom_levels(config.bloom_radius)
+        sizes = level_sizes(out_w, out_h, levels)
+        buffers["bloom.pyramid+tmp+color+taps"] = (12 * out_w * out_h + 12 * sum(w * h for w, h in sizes)
+                                                   + 12 * sizes[0][0] * sizes[0][1] + 4 * (2 * taps + 1))
     if k > 1:
         buffers["resolve.rows+color+gbuffer"] = 12 * out_w * height + (12 + 4 * len(layout.PLANES)) * out_w * out_h
     name = max(buffers, key=buffers.get)
