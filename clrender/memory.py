@@ -94,6 +94,9 @@ def estimate(width: int, height: int, config, scene=None) -> dict:
         sizes = level_sizes(out_w, out_h, levels)
         buffers["bloom.pyramid+tmp+color+taps"] = (12 * out_w * out_h + 12 * sum(w * h for w, h in sizes)
                                                    + 12 * sizes[0][0] * sizes[0][1] + 4 * (2 * taps + 1))
+    if getattr(config, "hatching", False):
+        from . import tam
+        buffers["hatching.out+tam"] = 12 * out_w * out_h + tam.DEVICE_BYTES
     if k > 1:
         buffers["resolve.rows+color+gbuffer"] = 12 * out_w * height + (12 + 4 * len(layout.PLANES)) * out_w * out_h
     name = max(buffers, key=buffers.get)
