@@ -16,7 +16,7 @@ from typing import Sequence
 
 import numpy as np
 
-INT_AOVS = ("triangle_id", "fragment_count")     # integer AOVs: no .exr
+INT_AOVS = ("triangle_id", "fragment_count", "edges")     # integer AOVs: no .exr
 
 
 # -- output files -----------------------------------------------------------------------------
@@ -135,6 +135,8 @@ def preview(name: str, data: np.ndarray, background: np.ndarray) -> np.ndarray:
         return linear_to_srgb8(data / (1.0 + np.maximum(data, 0.0)))
     if name in ("light_count", "fragment_count"):
         return _preview_heat(data)
+    if name == "edges":                    # the edge-AA mask: marked pixels white on black
+        return np.where(data > 0, 255, 0).astype(np.uint8)
     if name == "shadow":                   # (H, W, K): the darkest shadowed light per pixel, white = lit
         return _u8(data.min(-1) if data.shape[-1] else np.ones(data.shape[:2], np.float32))
     raise ValueError(f"no preview for AOV {name!r}")

@@ -3,6 +3,7 @@
     clrender render SCENE [SCENE ...] -o OUT [--width W --height H --device NAME --tile-size N
                     --transparency abuffer|depth_peeling|screen_door --peel-layers N
                     --max-fragments-per-pixel K --refraction
+                    --edge-aa --edge-depth-threshold T --edge-normal-threshold DEG --fxaa
                     --aov depth,normal,... --camera-eye x,y,z --camera-target x,y,z --fov DEG --quiet]
     clrender devices [--json]
     clrender info SCENE [--json]
@@ -169,6 +170,14 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--refraction", action="store_true", default=None,
                    help="distort what lies behind transparent surfaces by their materials' refraction "
                         "(default off)")
+    r.add_argument("--edge-aa", action="store_true", default=None,
+                   help="the report's edge-smoothing filter: blur along G-buffer edges (default off)")
+    r.add_argument("--edge-depth-threshold", type=float, metavar="T",
+                   help="with --edge-aa: relative view-depth jump that marks an edge (default 0.05)")
+    r.add_argument("--edge-normal-threshold", type=float, metavar="DEG",
+                   help="with --edge-aa: normal angle in degrees that marks an edge (default 30)")
+    r.add_argument("--fxaa", action="store_true", default=None,
+                   help="FXAA: luminance-edge anti-aliasing of the tone-mapped image (default off)")
     r.add_argument("--time", type=float, default=0.0, metavar="SECONDS",
                    help="animation time: places the scene's light particles (default 0)")
     r.add_argument("--aov", type=_aov_list, default=[], metavar="LIST",
@@ -326,13 +335,17 @@ def cmd_render(args) -> int:
         ("light_culling", args.light_culling), ("tonemap", args.tonemap), ("exposure", args.exposure),
         ("ssao", args.ssao), ("ssao_radius", args.ssao_radius), ("ssao_strength", args.ssao_strength),
         ("transparency", args.transparency), ("peel_layers", args.peel_layers),
-        ("max_fragments_per_pixel", args.max_fragments_per_pixel), ("refraction", args.refraction))
+        ("max_fragments_per_pixel", args.max_fragments_per_pixel), ("refraction", args.refraction),
+        ("edge_aa", args.edge_aa), ("edge_depth_threshold", args.edge_depth_threshold),
+        ("edge_normal_threshold_deg", args.edge_normal_threshold),
+        ("color_aa", "fxaa" if args.fxaa else None))
         if value is not None}
+    flags = {"edge_normal_threshold_deg": "--edge-normal-threshold", "color_aa": "--fxaa"}
     for name, value in options.items():          # name the offending flag
         try:
             RenderConfig.from_options(**{name: value})
         except ValueError as exc:
-            raise CLIError(f"--{name.replace('_', '-')}: {exc}") from None
+            raise CLIError(f"{flags.get(name, '--' + name.replace('_', '-'))}: {exc}") from None
     config = RenderConfig.from_options(**options)
     images = _plan_outputs(scenes, args.output)
     exr = bool(args.aov) and any(a not in INT_AOVS for a in args.aov) and exr_available()

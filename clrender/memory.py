@@ -77,7 +77,7 @@ def estimate(width: int, height: int, config, scene=None) -> dict:
         v, t, n_lights = len(scene.positions), scene.triangle_count, len(scene.lights)
         texels = sum(tex.rgba.shape[0] * tex.rgba.shape[1] for tex in scene.textures) * 4 // 3 + 1
         buffers.update({
-            "scene.vertices": 32 * v,
+            "scene.vertices": 32 * v + (12 * v if getattr(scene, "previous_positions", None) is not None else 0),
             "scene.triangles": 16 * t,
             "scene.texels": 4 * texels,
             "scene.lights": (structs.light_dtype.itemsize + 16) * n_lights,
@@ -94,6 +94,17 @@ def estimate(width: int, height: int, config, scene=None) -> dict:
         sizes = level_sizes(out_w, out_h, levels)
         buffers["bloom.pyramid+tmp+color+taps"] = (12 * out_w * out_h + 12 * sum(w * h for w, h in sizes)
                                                    + 12 * sizes[0][0] * sizes[0][1] + 4 * (2 * taps + 1))
+    if getattr(config, "ldr_effects", False):            # tonemap writes LDR planes, encode the image
+        buffers["tonemap.image"] = 12 * out_w * out_h
+        buffers["encode.image"] = 4 * out_w * out_h
+        if config.edge_aa:
+            buffers["edge_aa.ldr+edges+flags"] = 14 * out_w * out_h
+        if config.color_aa == "fxaa":
+            buffers["fxaa.ldr+luma"] = 16 * out_w * out_h
+    if getattr(config, "motion_blur", False):
+        from .passes.motion_blur import MAX_RADIUS
+        tiles = -(-out_w // MAX_RADIUS) * -(-out_h // MAX_RADIUS)
+        buffers["motion_blur.vectors+dilated+color+tiles"] = 28 * out_w * out_h + 8 * tiles
     if getattr(config, "hatching", False):
         from . import tam
         buffers["hatching.out+tam"] = 12 * out_w * out_h + tam.DEVICE_BYTES

@@ -153,6 +153,7 @@ class Scene:
     ambient: float = 0.03                       # ambient term: ambient · albedo
     particle_systems: list = field(default_factory=list)   # ParticleSystem: animated slices of `lights`
     sun: Optional["Sun"] = None                 # the directional light (set_sun)
+    previous_positions: Optional[np.ndarray] = None   # (V, 3) at the previous frame (set_transform); None: static
 
     def __post_init__(self):
         self.positions = np.ascontiguousarray(self.positions, dtype=np.float32).reshape(-1, 3)
@@ -166,6 +167,9 @@ class Scene:
             self.triangle_mesh = np.zeros(n_tri, np.int32)
         if self.triangle_face is None:
             self.triangle_face = np.arange(n_tri, dtype=np.int32)
+        if self.previous_positions is not None:
+            self.previous_positions = np.ascontiguousarray(self.previous_positions, dtype=np.float32)
+        self._rest_poses: dict = {}             # mesh index -> its geometry before any set_transform
         self.validate()
 
     # -- construction -------------------------------------------------------------------------
@@ -288,6 +292,80 @@ class Scene:
         self.lights = np.concatenate([self.lights, rec])
         return len(self.lights) - 1
 
+    # -- object motion ------------------------------------------------------------------------
+    def set_transform(self, mesh, matrix, previous=None) -> None:
+        """Place mesh `mesh` (a name in `mesh_names` or an index) with the 4×4 affine world transform
+        `matrix` (column vectors: p' = matrix @ (x, y, z, 1), translation in the last column),
+        applied to the mesh's vertices as they were before its first set_transform (its rest
+        pose); normals follow by the inverse transpose, and a mirroring matrix (negative
+        determinant) flips the winding. `previous` is the mesh's transform at the previous frame
+        (default: `matrix`, no motion): the G-buffer velocity of those vertices then reprojects
+        their previous positions with the previous camera (`Frame.velocity`, motion blur). A
+        previous transform holds until the mesh's next set_transform. Vertices the mesh shares
+        with other meshes are duplicated first, so triangle ids do not change."""
+        m = self._mesh_index(mesh)
+        cur = _affine_matrix(matrix, "matrix")
+        prev = cur if previous is None else _affine_matrix(previous, "previous")
+        vertices, rest_p, rest_n, rest_tris = self._rest_pose(m)
+        a = cur[:3, :3]
+        positions, normals = self.positions.copy(), self.normals.copy()
+        positions[vertices] = rest_p @ a.T + cur[:3, 3]
+        n = rest_n @ np.linalg.inv(a)               # (A^-T n) for row vectors
+        length = np.linalg.norm(n, axis=1, keepdims=True)
+        normals[vertices] = np.where(length > 0, n / np.where(length > 0, length, 1.0), rest_n)
+        triangles = self.triangles.copy()
+        triangles[self.triangle_mesh == m] = rest_tris[:, [0, 2, 1]] if np.linalg.det(a) < 0 else rest_tris
+        before = self.previous_positions if self.previous_positions is not None else self.positions
+        previous_positions = before.copy()
+        previous_positions[vertices] = rest_p @ prev[:3, :3].T + prev[:3, 3]
+        self.positions, self.normals, self.triangles = positions, normals, triangles
+        # No vertex moved: no buffer of previous positions at all (frames exactly as without motion).
+        self.previous_positions = None if np.array_equal(previous_positions, positions) else previous_positions
+
+    def _mesh_index(self, mesh) -> int:
+        if isinstance(mesh, str):
+            hits = [i for i, name in enumerate(self.mesh_names) if name == mesh]
+            if not hits:
+                shown = ", ".join(map(repr, self.mesh_names[:8])) + (", ..." if len(self.mesh_names) > 8 else "")
+                raise SceneError(f"{self.source}: no mesh named {mesh!r} (meshes: {shown})")
+            if len(hits) > 1:
+                raise SceneError(f"{self.source}: {len(hits)} meshes are named {mesh!r}; pass its index instead")
+            return hits[0]
+        if isinstance(mesh, (int, np.integer)) and not isinstance(mesh, bool):
+            if not 0 <= mesh < len(self.mesh_names):
+                raise SceneError(f"{self.source}: mesh index {mesh} out of range (there are {len(self.mesh_names)})")
+            return int(mesh)
+        raise SceneError(f"{self.source}: a mesh is a name or an index into mesh_names, got {mesh!r}")
+
+    def _rest_pose(self, m: int) -> tuple:
+        """(vertex indices, rest positions, rest normals (float64), rest triangles) of mesh m; on
+        first use, vertices shared with other meshes are duplicated for this mesh's triangles."""
+        rest = self._rest_poses.get(m)
+        nv = len(self.positions)
+        if rest is not None and rest[0].size and rest[0].max() < nv and np.shape(self.triangles) == rest[4]:
+            return rest[:4]
+        mine = self.triangle_mesh == m
+        if not mine.any():
+            raise SceneError(f"{self.source}: mesh {self.mesh_names[m]!r} has no triangles to transform")
+        used = np.unique(self.triangles[mine])
+        shared = np.intersect1d(used, np.unique(self.triangles[~mine]))
+        if shared.size:
+            remap = np.arange(nv, dtype=np.int64)
+            remap[shared] = np.arange(nv, nv + shared.size)
+            self.positions = np.concatenate([self.positions, self.positions[shared]])
+            self.normals = np.concatenate([self.normals, self.normals[shared]])
+            self.uvs = np.concatenate([self.uvs, self.uvs[shared]])
+            if self.previous_positions is not None:
+                self.previous_positions = np.concatenate([self.previous_positions, self.previous_positions[shared]])
+            triangles = self.triangles.copy()
+            triangles[mine] = remap[triangles[mine]]
+            self.triangles = triangles
+            used = np.unique(self.triangles[mine])
+        rest = (used, self.positions[used].astype(np.float64), self.normals[used].astype(np.float64),
+                self.triangles[mine].copy(), self.triangles.shape)
+        self._rest_poses[m] = rest
+        return rest[:4]
+
     # -- queries ------------------------------------------------------------------------------
     @property
     def triangle_count(self) -> int:
@@ -321,6 +399,9 @@ class Scene:
         nv, nt = len(self.positions), len(self.triangles)
         if self.normals.shape != (nv, 3) or self.uvs.shape != (nv, 2):
             raise SceneError(f"{where}: normals/uvs must have one entry per vertex ({nv})")
+        if self.previous_positions is not None and np.shape(self.previous_positions) != (nv, 3):
+            raise SceneError(f"{where}: previous_positions must have shape ({nv}, 3) like positions, "
+                             f"got {np.shape(self.previous_positions)}")
         if nt and (self.triangles.min() < 0 or self.triangles.max() >= nv):
             raise SceneError(f"{where}: a triangle index is out of range (there are {nv} vertices)")
         if self.triangle_material.shape != (nt,):
@@ -349,6 +430,22 @@ class Scene:
             "camera": None if self.camera is None else {
                 "eye": self.camera.eye, "target": self.camera.target, "fov_y_deg": self.camera.fov_y_deg},
         }
+
+
+def _affine_matrix(matrix, what: str) -> np.ndarray:
+    """A finite 4×4 affine transform (last row 0, 0, 0, 1) with an invertible 3×3 part, as float64."""
+    try:
+        a = np.asarray(matrix, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise SceneError(f"set_transform: {what} must be a 4x4 numeric matrix, got {matrix!r}") from None
+    if a.shape != (4, 4) or not np.isfinite(a).all():
+        raise SceneError(f"set_transform: {what} must be a finite 4x4 matrix, got shape {a.shape}")
+    if not np.array_equal(a[3], (0.0, 0.0, 0.0, 1.0)):
+        raise SceneError(f"set_transform: {what} must be affine (last row 0, 0, 0, 1), got {a[3].tolist()}")
+    det = np.linalg.det(a[:3, :3])
+    if not abs(det) > 1e-12 * max(np.abs(a[:3, :3]).max(), 1e-300) ** 3:
+        raise SceneError(f"set_transform: {what}'s 3x3 part is singular (determinant {det:g})")
+    return a
 
 
 def vertex_normals(positions: np.ndarray, triangles: np.ndarray) -> np.ndarray:

@@ -83,8 +83,10 @@ def transparent_triangle_count(scene: Scene) -> int:
 
 
 def _fingerprint(scene: Scene) -> tuple:
-    arrays = (scene.positions, scene.normals, scene.uvs, scene.triangles, scene.triangle_material)
-    return tuple((id(a), a.shape) for a in arrays) + (tuple(map(id, scene.materials)), tuple(map(id, scene.textures)))
+    arrays = (scene.positions, scene.normals, scene.uvs, scene.triangles, scene.triangle_material,
+              scene.previous_positions)
+    return tuple((id(a), np.shape(a)) for a in arrays) + (tuple(map(id, scene.materials)),
+                                                          tuple(map(id, scene.textures)))
 
 
 _UPLOADS: dict = {}
@@ -192,6 +194,8 @@ def upload(scene: Scene, device) -> Resources:
         "srgb_lut": cla.to_device(q, srgb_to_linear_lut()),
     }, values={"n_tris": scene.triangle_count, "scene_bounds": scene.bounds(),   # bounds: sun shadow fit
                "n_transparent_tris": transparent_triangle_count(scene)})
+    if scene.previous_positions is not None:     # objects moved (Scene.set_transform): the G-buffer's velocity
+        res.buffers["prev_positions"] = put(scene.previous_positions, np.float32)
     _UPLOADS[key] = (weakref.ref(scene), fingerprint, res)
     _watch(scene, key)
     return res

@@ -6,12 +6,15 @@
  * neighbours, the interpolated world normal flipped on visible back faces, a trilinear
  * base-color sample with the LOD from the derivatives, the material's specular terms: the
  * same code shades transparent fragments, forward.h); then linear depth = view depth / far
- * and the motion against the previous frame's view-projection. Everything is packed per
+ * and the motion: the surface point interpolated from the previous frame's vertex positions
+ * (prev_positions: the scene's own positions unless objects moved, Scene.set_transform) and
+ * projected by the previous frame's view-projection. Everything is packed per
  * the layout table (clrender/gbuffer.py, kernels/gbuffer.h).
  *
  * Buffers: vis_depth float[W·H], vis_prim int[W·H]; prims Prim[*]; scene positions/normals
  *          float[3V], uvs float[2V], triangles int[3T], materials Material[M]; textures;
- *          prev_view_proj float[16]; srgb_lut float[256] (decode), srgb_encode float2[4096].
+ *          prev_view_proj float[16], prev_positions float[3V]; srgb_lut float[256] (decode),
+ *          srgb_encode float2[4096].
  *          out: gbuffer uint[GB_PLANES][H·W].
  * Work-groups: 1-D, work-item i covers pixels [i·VEC, i·VEC + VEC); no barriers.
  */
@@ -29,7 +32,7 @@ kernel void gbuffer_resolve(global const float* vis_depth, global const int* vis
                             global const Material* materials,
                             global const uint* texels, constant float* srgb_lut, constant float2* srgb_encode,
                             global const TexInfo* tex_infos, global const TexLevel* tex_levels,
-                            global const float* prev_view_proj, int has_prev,
+                            global const float* prev_view_proj, global const float* prev_positions, int has_prev,
                             global uint* gbuffer)
 {
     const int npix = width * height;
@@ -74,7 +77,8 @@ kernel void gbuffer_resolve(global const float* vis_depth, global const int* vis
 
         floatV vx = 0.0f, vy = 0.0f;
         if (has_prev) {
-            vec3V wp = interp3(gather3(positions, i0), gather3(positions, i1), gather3(positions, i2), c0, c1, c2);
+            vec3V wp = interp3(gather3(prev_positions, i0), gather3(prev_positions, i1), gather3(prev_positions, i2),
+                               c0, c1, c2);
             global const float* M = prev_view_proj;
             floatV qx = M[0] * wp.x + M[1] * wp.y + M[2] * wp.z + M[3];
             floatV qy = M[4] * wp.x + M[5] * wp.y + M[6] * wp.z + M[7];

@@ -290,3 +290,89 @@ def test_refraction_kernels(device, capfd):
     np.testing.assert_array_equal(bent.color[~layered], plain.color[~layered])
     assert (np.abs(bent.color - plain.color).max(-1)[layered] > 1e-3).mean() > 0.3
     assert_no_device_diagnostics(capfd)
+
+
+# --- hatching (tests/test_hatching.py) -----------------------------------------------------------
+
+@pytest.mark.parametrize("scale", [1.0, 0.7])
+def test_hatching_kernel(device, capfd, scale):
+    """hatching.cl on a 24x16 frame (level 0, and the trilinear levels 0-1), against the NumPy
+    formula on the tone-mapped Frame.color."""
+    from clrender.gbuffer import linear_to_srgb8
+    from reference.shading import tonemap_curve
+    from test_hatching import COLOURED_CAMERA, coloured_scene, hatching_reference
+    frame = clrender.Renderer(TW, TH, device=device.id, tile_size=8, light_tile_size=8, hatching=True,
+                              hatching_scale=scale).render(coloured_scene(), COLOURED_CAMERA)
+    ldr = tonemap_curve(frame.color, "reinhard")
+    expect = linear_to_srgb8(hatching_reference(ldr, scale, 0.3))
+    assert np.abs(frame.image.astype(int) - expect.astype(int)).max() <= 1
+    assert np.abs(expect.astype(int) - linear_to_srgb8(ldr).astype(int)).mean() > 10
+    assert "hatching_ms" in frame.stats
+    assert_no_device_diagnostics(capfd)
+
+
+# -- anti-aliasing (README "Anti-aliasing"): edge_aa.cl and fxaa.cl on a tiny frame ----------------
+
+def test_anti_aliasing_kernels(device, capfd):
+    """tonemap_ldr -> edge_detect, edge_blur -> fxaa_luma, fxaa -> encode on tests/reference/aa.py's
+    scene at an odd size (partial work-groups, clamped borders): the edge mask equals the NumPy test
+    on the frame's own AOVs, only pixels at most 1 px from a marked one change, and the HDR colour
+    is untouched."""
+    from reference import aa
+    w, h = 22, 15
+    scene, cam = aa.aa_scene(w / h), aa.aa_camera()
+    opts = dict(device=device.id, tile_size=8, light_tile_size=8, tonemap="clamp")
+    plain = clrender.Renderer(w, h, **opts).render(scene, cam)
+    frame = clrender.Renderer(w, h, edge_aa=True, color_aa="fxaa", **opts).render(scene, cam)
+    rel_margin, angle_margin = aa.threshold_margin(frame.depth, frame.normal, frame.triangle_id)
+    assert rel_margin > 0.1 and angle_margin > 5.0
+    expect = aa.edge_mask(frame.depth, frame.normal, frame.triangle_id)
+    np.testing.assert_array_equal(frame.edges, expect)
+    assert 20 < expect.sum() < 0.7 * w * h
+    changed = np.abs(frame.image.astype(int) - plain.image).max(-1) > 0
+    assert changed.sum() > 10 and not (changed & ~aa.dilate(expect.astype(bool), 1)).any()
+    np.testing.assert_array_equal(frame.color, plain.color)
+    assert {"edge_aa_ms", "fxaa_ms", "encode_ms"} <= set(frame.stats)
+    assert_no_device_diagnostics(capfd)
+
+
+# -- bloom (docs/post.md, kernels/bloom.cl) ---------------------------------------------------------------
+
+@pytest.mark.parametrize("size, radius", [((TW, TH), 16.0), ((21, 13), 5.0)])
+def test_bloom_kernels(device, capfd, size, radius):
+    """Threshold + 2x2 means (odd sizes clamp), the Gaussian rows/columns with the cascaded 2x
+    upsampling, the compose: 3 levels at 24x16 (12x8, 6x4, 3x2), 2 at 21x13 (11x7, 6x4); against
+    the NumPy pyramid of test_bloom on the same frame without bloom."""
+    from test_bloom import assert_bloom_matches, spot_scene
+    scene = spot_scene((0.5, 0.3, -4.0), (6.0, 5.0, 4.0), 2.5, extra=[((-4.5, -4.0, -4.6), (4.0, 2.0, 6.0), 1.5)])
+    opts = dict(device=device.id, tile_size=8, light_tile_size=8)
+    off = clrender.Renderer(*size, **opts).render(scene, T_CAM)
+    on = clrender.Renderer(*size, bloom=True, bloom_threshold=0.5, bloom_strength=0.4, bloom_radius=radius,
+                           **opts).render(scene, T_CAM)
+    lit = off.color.max(-1) > 0.5
+    assert 4 <= lit.sum() < lit.size // 2 and lit[-1].any(), "bright spots, one at the bottom edge"
+    assert "bloom_ms" in on.stats
+    assert_bloom_matches(on.color, off.color, 0.5, 0.4, radius)
+    assert_no_device_diagnostics(capfd)
+
+
+# -- motion blur (docs/post.md, kernels/motion_blur.cl) and object motion (Scene.set_transform) -----------
+
+def test_motion_blur_kernels(device, capfd):
+    """A camera pan plus a quad moved with set_transform (the G-buffer's prev_positions) at 40x20
+    (two reach tiles along x, partial work-groups): mb_blur_vectors, mb_tile_reach, mb_dilate_x/y and
+    mb_gather against test_motion_blur's NumPy implementation on the same frame without blur."""
+    from test_motion_blur import CAM, panned, reference_motion_blur, translation, wall_and_quad
+    scene = wall_and_quad()
+    scene.set_transform("quad", translation(-0.4), previous=translation(0.4))   # on screen: with the pan
+    prev = panned(-1.5)
+    opts = dict(device=device.id, tile_size=8, light_tile_size=8)
+    off = clrender.Renderer(40, 20, **opts).render(scene, CAM, previous_camera=prev)
+    on = clrender.Renderer(40, 20, motion_blur=True, shutter=1.0, motion_blur_samples=6,
+                           **opts).render(scene, CAM, previous_camera=prev)
+    quad = np.isin(off.triangle_id, (scene.triangle_count - 2, scene.triangle_count - 1))
+    assert quad.sum() > 20 and np.abs(off.velocity[quad][:, 0]).min() > 8 > np.abs(off.velocity[~quad][:, 0]).max()
+    np.testing.assert_array_equal(on.velocity, off.velocity)
+    np.testing.assert_allclose(on.color, reference_motion_blur(off.color, off.velocity, 1.0, 6), rtol=1e-5, atol=1e-6)
+    assert (np.abs(on.color - off.color).max(-1) > 1e-3).mean() > 0.5 and "motion_blur_ms" in on.stats
+    assert_no_device_diagnostics(capfd)

@@ -1,4 +1,8 @@
-"""G-buffer pass (kernels/gbuffer.cl): resolve visibility into the packed G-buffer."""
+"""G-buffer pass (kernels/gbuffer.cl): resolve visibility into the packed G-buffer.
+
+Velocity reprojects each surface point into the previous frame: its camera (`prev_view_proj`,
+motion when `has_prev`) and, for objects moved with `Scene.set_transform(..., previous=...)`, its
+vertex positions (the scene upload's optional `prev_positions`; without it the current ones)."""
 from __future__ import annotations
 
 import numpy as np
@@ -27,10 +31,14 @@ class GBufferPass(RenderPass):
 
     def run(self, res):
         w, h = res["width"], res["height"]
+        prev_positions = res.buffers.get("prev_positions")          # only when some object moved
+        has_prev = int(res["has_prev"] or prev_positions is not None)
+        if prev_positions is None:
+            prev_positions = res["positions"]
         self.kernel(self.queue, (round_up(-(-w * h // self.vec), 64),), (64,),
                     res["vis_depth"].data, res["vis_prim"].data, res["prims"].data,
                     np.int32(w), np.int32(h), np.float32(res["far"]),
                     res["positions"].data, res["normals"].data, res["uvs"].data, res["triangles"].data,
                     res["materials"].data, res["texels"].data, res["srgb_lut"].data, res["srgb_encode"].data,
                     res["tex_infos"].data, res["tex_levels"].data,
-                    res["prev_view_proj"].data, np.int32(res["has_prev"]), self.gbuffer.data)
+                    res["prev_view_proj"].data, prev_positions.data, np.int32(has_prev), self.gbuffer.data)

@@ -1,0 +1,36 @@
+"""FXAA pass (kernels/fxaa.cl): luminance-edge anti-aliasing of the LDR planes, FXAA 3.11
+"quality" style (local contrast test, edge orientation, an 8-step search for the edge's ends,
+blend by the distance to them plus a subpixel term). In the pipeline only when
+`RenderConfig.color_aa == "fxaa"` (docs/post.md: tone map -> edge AA -> FXAA -> encode)."""
+from __future__ import annotations
+
+import numpy as np
+
+from .base import RenderPass, empty
+from .edge_aa import WG, global_size_2d
+
+
+class FxaaPass(RenderPass):
+    name = "fxaa"
+    inputs = ("ldr",)
+    outputs = ("ldr",)
+
+    def __init__(self, device, config):
+        super().__init__(device, config)
+        self.luma_kernel = device.kernel("fxaa.cl", "fxaa_luma")
+        self.kernel = device.kernel("fxaa.cl", "fxaa")
+
+    def allocate(self, width, height):
+        self.luma = empty(self.queue, width * height, np.float32)
+        self.ldr = empty(self.queue, 3 * width * height, np.float32)
+
+    def publish(self, res):
+        self.source = res["ldr"]            # the previous LDR planes; ours replace them for later passes
+        res.buffers["ldr"] = self.ldr
+
+    def run(self, res):
+        w, h = res["width"], res["height"]
+        gsize, lsize = global_size_2d(w, h), (WG, WG)
+        self.luma_kernel(self.queue, gsize, lsize, self.source.data, np.int32(w), np.int32(h), self.luma.data)
+        self.kernel(self.queue, gsize, lsize, self.source.data, self.luma.data, np.int32(w), np.int32(h),
+                    self.ldr.data)
