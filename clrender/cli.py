@@ -4,6 +4,10 @@
                     --transparency abuffer|depth_peeling|screen_door --peel-layers N
                     --max-fragments-per-pixel K --refraction
                     --edge-aa --edge-depth-threshold T --edge-normal-threshold DEG --fxaa
+                    --supersample K --supersample-filter box|lanczos2|mitchell
+                    --bloom --bloom-threshold T --bloom-strength S --bloom-radius PX
+                    --motion-blur --shutter F --motion-blur-samples N --previous-eye x,y,z --previous-target x,y,z
+                    --hatching --hatching-scale S --hatching-saturation S
                     --aov depth,normal,... --camera-eye x,y,z --camera-target x,y,z --fov DEG --quiet]
     clrender devices [--json]
     clrender info SCENE [--json]
@@ -178,6 +182,30 @@ def build_parser() -> argparse.ArgumentParser:
                    help="with --edge-aa: normal angle in degrees that marks an edge (default 30)")
     r.add_argument("--fxaa", action="store_true", default=None,
                    help="FXAA: luminance-edge anti-aliasing of the tone-mapped image (default off)")
+    r.add_argument("--supersample", type=_positive_int, metavar="K",
+                   help="render at K·W × K·H and filter down in linear HDR, K in 1..4 (default 1)")
+    r.add_argument("--supersample-filter", choices=("box", "lanczos2", "mitchell"),
+                   help="with --supersample: the resolve filter (default box)")
+    r.add_argument("--bloom", action="store_true", default=None,
+                   help="bloom: HDR colour above --bloom-threshold, blurred and added back (default off)")
+    r.add_argument("--bloom-threshold", type=float, metavar="T", help="with --bloom: linear HDR threshold (default 1)")
+    r.add_argument("--bloom-strength", type=float, metavar="S", help="with --bloom: strength (default 0.1)")
+    r.add_argument("--bloom-radius", type=float, metavar="PX", help="with --bloom: radius in pixels (default 16)")
+    r.add_argument("--motion-blur", action="store_true", default=None,
+                   help="motion blur along the per-pixel velocity; give motion with --previous-eye/"
+                        "--previous-target (default off)")
+    r.add_argument("--shutter", type=float, metavar="F", help="with --motion-blur: exposure in frames (default 0.5)")
+    r.add_argument("--motion-blur-samples", type=_positive_int, metavar="N",
+                   help="with --motion-blur: samples along the velocity, 2..64 (default 8)")
+    r.add_argument("--previous-eye", type=_vec3, metavar="X,Y,Z",
+                   help="the camera's position at the previous frame (velocity, motion blur)")
+    r.add_argument("--previous-target", type=_vec3, metavar="X,Y,Z",
+                   help="the point the camera looked at in the previous frame")
+    r.add_argument("--hatching", action="store_true", default=None,
+                   help="the report's non-photorealistic hatching of the image (default off)")
+    r.add_argument("--hatching-scale", type=float, metavar="S", help="with --hatching: stroke scale (default 1)")
+    r.add_argument("--hatching-saturation", type=float, metavar="S",
+                   help="with --hatching: colour kept, 0 (ink on white) .. 1 (default 0.3)")
     r.add_argument("--time", type=float, default=0.0, metavar="SECONDS",
                    help="animation time: places the scene's light particles (default 0)")
     r.add_argument("--aov", type=_aov_list, default=[], metavar="LIST",
@@ -240,6 +268,32 @@ def _scene_size(scene, args) -> tuple[int, int]:
     if h is None:
         h = max(1, round(w * dh / dw))
     return w, h
+
+
+def _scene_config(scene, path, options):
+    """The scene's [render] options (TOML) with the command line's on top."""
+    import dataclasses
+
+    from .renderer import RenderConfig
+    settings = scene.settings.get("render", {}) if isinstance(scene.settings, dict) else {}
+    names = {f.name for f in dataclasses.fields(RenderConfig)}
+    try:
+        return RenderConfig.from_options(**{**{k: v for k, v in settings.items() if k in names}, **options})
+    except ValueError as exc:
+        raise CLIError(f"{path}: [render]: {exc}") from None
+
+
+def _previous_camera(camera, args):
+    """--previous-eye/--previous-target: the camera of the previous frame (velocity, motion blur)."""
+    from .camera import Camera
+    if args.previous_eye is None and args.previous_target is None:
+        return None
+    eye = args.previous_eye if args.previous_eye is not None else camera.eye
+    target = args.previous_target if args.previous_target is not None else camera.target
+    try:
+        return Camera.look_at(eye, target, camera.up, camera.fov_y_deg, near=camera.near, far=camera.far)
+    except ValueError as exc:
+        raise CLIError(f"--previous-eye/--previous-target: {exc}") from None
 
 
 def _camera(scene, args):
@@ -338,7 +392,12 @@ def cmd_render(args) -> int:
         ("max_fragments_per_pixel", args.max_fragments_per_pixel), ("refraction", args.refraction),
         ("edge_aa", args.edge_aa), ("edge_depth_threshold", args.edge_depth_threshold),
         ("edge_normal_threshold_deg", args.edge_normal_threshold),
-        ("color_aa", "fxaa" if args.fxaa else None))
+        ("color_aa", "fxaa" if args.fxaa else None), ("supersample", args.supersample),
+        ("supersample_filter", args.supersample_filter), ("bloom", args.bloom),
+        ("bloom_threshold", args.bloom_threshold), ("bloom_strength", args.bloom_strength),
+        ("bloom_radius", args.bloom_radius), ("motion_blur", args.motion_blur), ("shutter", args.shutter),
+        ("motion_blur_samples", args.motion_blur_samples), ("hatching", args.hatching),
+        ("hatching_scale", args.hatching_scale), ("hatching_saturation", args.hatching_saturation))
         if value is not None}
     flags = {"edge_normal_threshold_deg": "--edge-normal-threshold", "color_aa": "--fxaa"}
     for name, value in options.items():          # name the offending flag
@@ -346,7 +405,7 @@ def cmd_render(args) -> int:
             RenderConfig.from_options(**{name: value})
         except ValueError as exc:
             raise CLIError(f"{flags.get(name, '--' + name.replace('_', '-'))}: {exc}") from None
-    config = RenderConfig.from_options(**options)
+    RenderConfig.from_options(**options)
     images = _plan_outputs(scenes, args.output)
     exr = bool(args.aov) and any(a not in INT_AOVS for a in args.aov) and exr_available()
     _check_distinct(scenes, images, args.aov, exr)
@@ -363,11 +422,12 @@ def cmd_render(args) -> int:
             scene = _load(scene_path)
             width, height = _scene_size(scene, args)
             camera = _camera(scene, args)
-            renderer = renderers.get((width, height))
+            config = _scene_config(scene, scene_path, options)
+            renderer = renderers.get((width, height, config))
             if renderer is None:
-                renderer = renderers[(width, height)] = Renderer(width, height, device=info, config=config)
+                renderer = renderers[(width, height, config)] = Renderer(width, height, device=info, config=config)
             start = time.perf_counter()
-            frame = renderer.render(scene, camera, time=args.time)
+            frame = renderer.render(scene, camera, previous_camera=_previous_camera(camera, args), time=args.time)
             wall_ms = (time.perf_counter() - start) * 1e3
             write_outputs(frame, image, args.aov)
         except (CLIError, ValueError, OSError) as exc:     # SceneError is a ValueError
@@ -515,11 +575,24 @@ def _quiet_compiler_logs() -> None:
     warnings.simplefilter("ignore", CompilerWarning)
 
 
+def _one_line_warnings(quiet: bool) -> None:
+    """Library warnings (a device left out, a loader note) as one `clrender: note:` line each;
+    none with --quiet."""
+    if quiet and not _debug():
+        warnings.simplefilter("ignore", UserWarning)
+        return
+
+    def show(message, category, filename, lineno, file=None, line=None):
+        print(f"{PROG}: note: {message}", file=sys.stderr, flush=True)
+    warnings.showwarning = show
+
+
 def main(argv: Optional[Sequence[str]] = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     _quiet_compiler_logs()
     try:
         args = build_parser().parse_args(_join_vector_options(argv))
+        _one_line_warnings(getattr(args, "quiet", False))
         return int(args.func(args) or 0)
     except SystemExit as exc:                    # --help / --version
         return exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 1)

@@ -433,3 +433,58 @@ def test_batch_keeps_going_past_a_bad_scene(quad, tmp_path, device, capsys):
     err = capsys.readouterr().err.strip().splitlines()
     assert any("bad.toml" in line for line in err) and "1 of 2 scenes failed" in err[-1]
     assert (out / "quad.png").exists(), "the good scene is still rendered"
+
+
+@needs_loaders
+def test_post_options_from_flags_and_toml(quad, tmp_path, device, capsys, monkeypatch):
+    """Every post option reaches RenderConfig from its flag and from TOML [render]; flags win over
+    the file; a bad [render] value is a one-line error naming the file."""
+    from clrender import renderer as renderer_module
+
+    seen = []
+
+    class Recording(renderer_module.Renderer):
+        def __init__(self, *args, **kwargs):
+            super().__init__(*args, **kwargs)
+            seen.append(self.config)
+
+    monkeypatch.setattr(renderer_module, "Renderer", Recording)
+    common = [str(quad), "--width", "16", "--height", "12", "--device", device.id, "-q", *CAMERA_ARGS]
+    flags = ["--supersample", "2", "--supersample-filter", "mitchell", "--bloom", "--bloom-threshold", "0.5",
+             "--bloom-strength", "0.3", "--bloom-radius", "8", "--motion-blur", "--shutter", "0.25",
+             "--motion-blur-samples", "4", "--hatching", "--hatching-scale", "2", "--hatching-saturation", "0.5"]
+    assert cli.main(["render", *common, "-o", str(tmp_path / "a.png"), *flags]) == 0, capsys.readouterr().err
+    c = seen[-1]
+    assert (c.supersample, c.supersample_filter, c.bloom, c.bloom_threshold, c.bloom_strength, c.bloom_radius,
+            c.motion_blur, c.shutter, c.motion_blur_samples, c.hatching, c.hatching_scale, c.hatching_saturation) == \
+        (2, "mitchell", True, 0.5, 0.3, 8.0, True, 0.25, 4, True, 2.0, 0.5)
+
+    toml = tmp_path / "scene.toml"
+    toml.write_text(f'[[mesh]]\npath = "{quad.name}"\n\n[camera]\neye = [0, 0, 3]\ntarget = [0, 0, 0]\n\n'
+                    f'[render]\nwidth = 16\nheight = 12\nbloom = true\nsupersample = 3\nexposure = 2.0\n')
+    assert cli.main(["render", str(toml), "-o", str(tmp_path / "t.png"), "--device", device.id, "-q"]) == 0
+    assert (seen[-1].bloom, seen[-1].supersample, seen[-1].exposure) == (True, 3, 2.0)
+    assert cli.main(["render", str(toml), "-o", str(tmp_path / "t.png"), "--device", device.id, "-q",
+                     "--supersample", "1"]) == 0
+    assert seen[-1].supersample == 1 and seen[-1].bloom
+    toml.write_text(f'[[mesh]]\npath = "{quad.name}"\n\n[render]\nsupersample = 9\n')
+    capsys.readouterr()
+    assert cli.main(["render", str(toml), "-o", str(tmp_path / "t.png"), "--device", device.id]) != 0
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "scene.toml" in err[0] and "supersample" in err[0], err
+    toml.write_text(f'[[mesh]]\npath = "{quad.name}"\n\n[render]\nbloooom = true\n')
+    assert cli.main(["render", str(toml), "-o", str(tmp_path / "t.png"), "--device", device.id]) != 0
+    assert "bloooom" in capsys.readouterr().err
+
+
+@needs_loaders
+def test_previous_camera_flags_give_velocity(quad, tmp_path, device):
+    out = tmp_path / "v.png"
+    assert cli.main(["render", str(quad), "-o", str(out), "--width", "16", "--height", "12", "--device", device.id,
+                     "-q", *CAMERA_ARGS, "--previous-eye", "0.2,0,3", "--previous-target", "0.2,0,0",
+                     "--aov", "velocity"]) == 0
+    vel = np.load(tmp_path / "v.velocity.npy")
+    assert np.abs(vel[..., 0]).max() > 0.3 and np.abs(vel[..., 1]).max() < 1e-2
+    assert cli.main(["render", str(quad), "-o", str(out), "--width", "16", "--height", "12", "--device", device.id,
+                     "-q", *CAMERA_ARGS, "--aov", "velocity"]) == 0
+    assert np.abs(np.load(tmp_path / "v.velocity.npy")).max() == 0

@@ -28,6 +28,8 @@ far = 100                     # optional, default 100
 [render]                      # -> Scene.settings["render"]
 width = 960
 height = 540
+supersample = 2               # any RenderConfig option (README: options), e.g. bloom = true, edge_aa = true;
+                              # the command line's flags override them
 
 [[light]]                     # any number -> Scene.lights, in file order
 type = "point"                # point | spot | directional
@@ -109,8 +111,8 @@ MESH_KEYS = {"path", "name", "transform", "opacity", "refraction"}
 MATERIAL_KEYS = {"name", "opacity", "refraction", "alpha_mode", "alpha_cutoff"}
 TRANSFORM_KEYS = {"translate", "rotate_deg", "scale"}
 CAMERA_KEYS = {"eye", "target", "up", "fov_y_deg", "near", "far"}
-# render settings understood by the renderer; extend this set when a new setting is added
-RENDER_KEYS = {"width", "height", "background", "exposure"}
+# [render]: the image size, a background colour, and any RenderConfig option (validated by it)
+RENDER_KEYS = {"width", "height", "background"}
 LIGHT_KEYS = {"type", "name", "position", "direction", "color", "intensity", "radius", "range",
               "inner_cone_deg", "outer_cone_deg", "shadow", "shadow_map_size"}
 LIGHT_TYPES = ("directional", "point", "spot")
@@ -214,8 +216,16 @@ def _camera(path, data) -> Camera:
 
 
 def _render(path, data) -> dict:
+    import dataclasses
+
+    from ..renderer import RenderConfig
     data = _table(path, "[render]", data)
-    _unknown(path, "[render]", data, RENDER_KEYS)
+    options = {f.name for f in dataclasses.fields(RenderConfig)}
+    _unknown(path, "[render]", data, RENDER_KEYS | options)
+    try:
+        RenderConfig.from_options(**{k: v for k, v in data.items() if k in options})
+    except ValueError as exc:
+        raise fail(path, f"[render]: {exc}") from None
     out = dict(data)
     for key in ("width", "height"):
         if key in out:
@@ -227,8 +237,6 @@ def _render(path, data) -> dict:
         if not isinstance(value, list) or len(value) not in (3, 4):
             raise fail(path, f"render.background must be 3 or 4 numbers, got {value!r}")
         out["background"] = [_number(path, "render.background", v) for v in value]
-    if "exposure" in out:
-        out["exposure"] = _number(path, "render.exposure", out["exposure"])
     return out
 
 
