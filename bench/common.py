@@ -31,15 +31,15 @@ def medians(samples: list[dict]) -> dict:
     return {k: statistics.median(s[k] for s in samples) for k in keys}
 
 
-def time_renders(renderer, scene, camera, warmup: int, repeats: int):
+def time_renders(renderer, scene, camera, warmup: int, repeats: int, **render_args):
     """Render warm-up frames, then `repeats` timed ones: (per-frame stats, wall ms, last frame)."""
     frame = None
     for _ in range(warmup):
-        frame = renderer.render(scene, camera)
+        frame = renderer.render(scene, camera, **render_args)
     stats, walls = [], []
     for _ in range(repeats):
         t0 = time.perf_counter()
-        frame = renderer.render(scene, camera)
+        frame = renderer.render(scene, camera, **render_args)
         walls.append((time.perf_counter() - t0) * 1e3)
         stats.append(frame.stats)
     return stats, walls, frame
