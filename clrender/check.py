@@ -175,9 +175,10 @@ AOVS = ("triangle_id", "depth", "normal", "albedo", "velocity", "light_count", "
         "transmittance", "edges", "color", "image")
 
 
-def run_check(devices: Optional[str] = "all", scenes: Sequence[str | Path] = (), width: int = 96,
+def run_check(devices="all", scenes: Sequence[str | Path] = (), width: int = 96,
               height: int = 64, progress=None) -> CheckReport:
-    """Render the cases (or `scenes`) on every selected device; compare with the first device."""
+    """Render the cases (or `scenes`) on every selected device -- "all", a name (select_devices), or
+    a list of DeviceInfo -- and compare with the first device."""
     from .device import DeviceError, list_devices, select_devices
     from .loaders import load_scene
     from .renderer import Renderer
@@ -185,8 +186,11 @@ def run_check(devices: Optional[str] = "all", scenes: Sequence[str | Path] = (),
     # Unlike test runs, a portability check includes simulators such as Oclgrind in "all"
     # (but not devices whose compiler cannot build a trivial kernel: select_devices warns).
     from .capabilities import compiler_error
-    infos = list_devices() if devices in (None, "all") else select_devices(devices)
-    if devices in (None, "all"):
+    if isinstance(devices, (list, tuple)):
+        infos = list(devices)
+    else:
+        infos = list_devices() if devices in (None, "all") else select_devices(devices)
+    if devices is None or devices == "all":
         for info in infos:
             if compiler_error(info.cl_device) is not None:
                 select_devices("all")            # warns, naming the device and its error
