@@ -14,3 +14,19 @@ def assert_scene_error(path, words) -> str:
     for w in words:
         assert w in msg, msg
     return msg
+
+
+def record_render_configs(monkeypatch) -> list:
+    """Replace clrender.renderer.Renderer by a subclass that appends each new renderer's
+    RenderConfig to the returned list (what the CLI turned its flags and [render] table into)."""
+    from clrender import renderer as renderer_module
+
+    seen = []
+
+    class Recording(renderer_module.Renderer):
+        def __init__(self, *args, **kwargs):
+            super().__init__(*args, **kwargs)
+            seen.append(self.config)
+
+    monkeypatch.setattr(renderer_module, "Renderer", Recording)
+    return seen

@@ -28,6 +28,7 @@ import numpy as np
 import pytest
 
 import clrender
+from helpers import record_render_configs
 from clrender import Camera, Scene, Texture
 from reference import aa
 
@@ -210,14 +211,7 @@ def test_cli_flags_and_edges_aov(device, tmp_path, capsys, monkeypatch):
     from clrender import renderer as renderer_module
 
     monkeypatch.delenv(cli.ENV_DEBUG, raising=False)
-    seen = []
-
-    class Recording(renderer_module.Renderer):
-        def __init__(self, *args, **kwargs):
-            super().__init__(*args, **kwargs)
-            seen.append(self.config)
-
-    monkeypatch.setattr(renderer_module, "Renderer", Recording)
+    seen = record_render_configs(monkeypatch)
     obj = tmp_path / "quad.obj"
     obj.write_text("v -1 -1 0\nv 1 -1 0\nv 1 1 0\nv -1 1 0\nf 1 2 3\nf 1 3 4\n")
     common = [str(obj), "--width", "24", "--height", "16", "--device", device.id, "-q",

@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 
 from clrender import aov_io, cli
+from helpers import record_render_configs
 
 REPO = Path(__file__).resolve().parent.parent
 
@@ -217,14 +218,7 @@ def test_transparency_options_reach_the_config(quad, tmp_path, device, capsys, m
     fields of the same names; without them the config keeps its defaults."""
     from clrender import renderer as renderer_module
 
-    seen = []
-
-    class Recording(renderer_module.Renderer):
-        def __init__(self, *args, **kwargs):
-            super().__init__(*args, **kwargs)
-            seen.append(self.config)
-
-    monkeypatch.setattr(renderer_module, "Renderer", Recording)
+    seen = record_render_configs(monkeypatch)
     common = [str(quad), "--width", "16", "--height", "12", "--device", device.id, "-q", *CAMERA_ARGS]
     assert cli.main(["render", *common, "-o", str(tmp_path / "a.png"), "--transparency", "depth_peeling",
                      "--peel-layers", "8", "--max-fragments-per-pixel", "3", "--refraction"]) == 0, \
@@ -439,16 +433,7 @@ def test_batch_keeps_going_past_a_bad_scene(quad, tmp_path, device, capsys):
 def test_post_options_from_flags_and_toml(quad, tmp_path, device, capsys, monkeypatch):
     """Every post option reaches RenderConfig from its flag and from TOML [render]; flags win over
     the file; a bad [render] value is a one-line error naming the file."""
-    from clrender import renderer as renderer_module
-
-    seen = []
-
-    class Recording(renderer_module.Renderer):
-        def __init__(self, *args, **kwargs):
-            super().__init__(*args, **kwargs)
-            seen.append(self.config)
-
-    monkeypatch.setattr(renderer_module, "Renderer", Recording)
+    seen = record_render_configs(monkeypatch)
     common = [str(quad), "--width", "16", "--height", "12", "--device", device.id, "-q", *CAMERA_ARGS]
     flags = ["--supersample", "2", "--supersample-filter", "mitchell", "--bloom", "--bloom-threshold", "0.5",
              "--bloom-strength", "0.3", "--bloom-radius", "8", "--motion-blur", "--shutter", "0.25",
