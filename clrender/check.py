@@ -179,22 +179,15 @@ def run_check(devices="all", scenes: Sequence[str | Path] = (), width: int = 96,
               height: int = 64, progress=None) -> CheckReport:
     """Render the cases (or `scenes`) on every selected device -- "all", a name (select_devices), or
     a list of DeviceInfo -- and compare with the first device."""
-    from .device import DeviceError, list_devices, select_devices
+    from .device import DeviceError, select_devices
     from .loaders import load_scene
     from .renderer import Renderer
 
-    # Unlike test runs, a portability check includes simulators such as Oclgrind in "all"
-    # (but not devices whose compiler cannot build a trivial kernel: select_devices warns).
-    from .capabilities import compiler_error
+    # Unlike test runs, a portability check includes simulators such as Oclgrind in "all".
     if isinstance(devices, (list, tuple)):
         infos = list(devices)
     else:
-        infos = list_devices() if devices in (None, "all") else select_devices(devices)
-    if devices is None or devices == "all":
-        for info in infos:
-            if compiler_error(info.cl_device) is not None:
-                select_devices("all")            # warns, naming the device and its error
-        infos = [i for i in infos if compiler_error(i.cl_device) is None]
+        infos = select_devices(devices or "all", simulators=True)
     infos = sorted(infos, key=lambda d: d.is_simulator)   # a real device is the reference
     if not infos:
         raise DeviceError("no OpenCL device found")

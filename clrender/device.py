@@ -80,9 +80,10 @@ def list_devices() -> list[DeviceInfo]:
     return found
 
 
-def select_devices(spec: Optional[str] = None) -> list[DeviceInfo]:
-    """`all` (every device but simulators), a name substring, or `P:D`. Of several devices, those
-    whose compiler cannot build a trivial kernel are left out with a warning naming them."""
+def select_devices(spec: Optional[str] = None, simulators: bool = False) -> list[DeviceInfo]:
+    """`all` (every device but simulators, unless `simulators`), a name substring, or `P:D`. Of
+    several devices, those whose compiler cannot build a trivial kernel are left out with a
+    warning naming them."""
     devices = list_devices()
     if not devices:
         raise DeviceError("no OpenCL device found: install one, e.g. `pip install pocl-binary-distribution`")
@@ -94,7 +95,7 @@ def select_devices(spec: Optional[str] = None) -> list[DeviceInfo]:
                 usable.append(d)
             else:
                 _warn_unusable(d, error)
-        chosen = [d for d in usable if not d.is_simulator]
+        chosen = usable if simulators else [d for d in usable if not d.is_simulator]
         return chosen or usable or devices
     chosen = [d for d in devices if d.matches(spec)]
     if not chosen:
