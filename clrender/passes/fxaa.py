@@ -6,8 +6,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from .. import capabilities
 from .base import RenderPass, empty
-from .edge_aa import WG, global_size_2d
+from .edge_aa import global_size, work_group
 
 
 class FxaaPass(RenderPass):
@@ -17,8 +18,10 @@ class FxaaPass(RenderPass):
 
     def __init__(self, device, config):
         super().__init__(device, config)
-        self.luma_kernel = device.kernel("fxaa.cl", "fxaa_luma")
-        self.kernel = device.kernel("fxaa.cl", "fxaa")
+        self.vec = capabilities.pixel_vector_width(device.cl_device)
+        defines = {"VEC": self.vec}
+        self.luma_kernel = device.kernel("fxaa.cl", "fxaa_luma", defines)
+        self.kernel = device.kernel("fxaa.cl", "fxaa", defines)
 
     def allocate(self, width, height):
         self.luma = empty(self.queue, width * height, np.float32)
@@ -30,7 +33,7 @@ class FxaaPass(RenderPass):
 
     def run(self, res):
         w, h = res["width"], res["height"]
-        gsize, lsize = global_size_2d(w, h), (WG, WG)
+        gsize, lsize = global_size(w, h, self.vec), work_group(self.vec)
         self.luma_kernel(self.queue, gsize, lsize, self.source.data, np.int32(w), np.int32(h), self.luma.data)
         self.kernel(self.queue, gsize, lsize, self.source.data, self.luma.data, np.int32(w), np.int32(h),
                     self.ldr.data)
