@@ -50,7 +50,17 @@ POST_TOLERANCES = {**TOLERANCES, "image": ("mostly", (1.0, 0.005, 16.0))}
 POST_OPTIONS = dict(ssao=True, supersample=2, supersample_filter="lanczos2", bloom=True, bloom_threshold=0.5,
                     motion_blur=True, edge_aa=True, color_aa="fxaa", hatching=True)
 
+# The demo again under other options (besides "post"): the renderer variants (docs/variants.md).
+VARIANT_OPTIONS = {
+    "prepass": dict(pipeline="light_prepass", msaa=4, light_buffer_specular="luminance", ssao=True),
+    "indexed": dict(pipeline="light_indexed"),
+}
+
 REPO_SCENES = Path(__file__).resolve().parents[1] / "scenes"
+
+# Light-accumulation variants (docs/light_accumulation.md), each a case of its own: the soup (64
+# lights, a shadowed spot and the sun) rendered with light_culling set to it.
+LIGHT_VARIANTS = ("quads", "stencil")
 
 
 @dataclass(frozen=True)
@@ -200,10 +210,17 @@ def run_check(devices="all", scenes: Sequence[str | Path] = (), width: int = 96,
         cases = default_cases(width, height)
     if not scenes and cases and cases[0][0] == "demo":
         cases.append(("post", cases[0][1], cases[0][2]))          # the demo with every post effect
+        cases += [(name, cases[0][1], cases[0][2]) for name in VARIANT_OPTIONS]
+    soup = next((c for c in cases if c[0] == "soup"), None) if not scenes else None
+    if soup is not None:
+        cases += [(mode, soup[1], soup[2]) for mode in LIGHT_VARIANTS]
     frames = {}
     for info in infos:
         renderer = Renderer(width, height, device=info, ssao=True)     # so that `ao` is computed
         post = Renderer(width, height, device=info, **POST_OPTIONS)
+        variants = {name: Renderer(width, height, device=info, **opts) for name, opts in VARIANT_OPTIONS.items()}
+        variants.update({mode: Renderer(width, height, device=info, ssao=True, light_culling=mode)
+                         for mode in LIGHT_VARIANTS})
         for name, scene, camera in cases:
             if progress:
                 progress(f"{info.label}: {name}")
@@ -212,7 +229,7 @@ def run_check(devices="all", scenes: Sequence[str | Path] = (), width: int = 96,
                                       camera.up, camera.fov_y_deg, camera.near, camera.far)
                 frames[info.label, name] = post.render(scene, camera, previous_camera=prev, time=0.5)
             else:
-                frames[info.label, name] = renderer.render(scene, camera, time=0.5)
+                frames[info.label, name] = variants.get(name, renderer).render(scene, camera, time=0.5)
     reference = infos[0].label
     rows = []
     for info in infos[1:]:

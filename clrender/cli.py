@@ -1,6 +1,9 @@
 """Command line: `clrender render | devices | info`, a thin loop over the library API.
 
     clrender render SCENE [SCENE ...] -o OUT [--width W --height H --device NAME --tile-size N
+                    --pipeline deferred|light_prepass|light_indexed --msaa N
+                    --light-buffer-specular rgb|luminance --light-buffer-precision float32|float16
+                    --light-culling tiled|brute_force|quads|stencil
                     --transparency abuffer|depth_peeling|screen_door --peel-layers N
                     --max-fragments-per-pixel K --refraction
                     --edge-aa --edge-depth-threshold T --edge-normal-threshold DEG --fxaa
@@ -131,7 +134,8 @@ def _join_vector_options(argv: list[str]) -> list[str]:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    from .renderer import TRANSPARENCY
+    from .renderer import (LIGHT_BUFFER_PRECISION, LIGHT_BUFFER_SPECULAR, LIGHT_CULLING, PIPELINES,
+                           TRANSPARENCY)
 
     parser = _Parser(prog=PROG, description="clrender: a tiled deferred renderer whose pixels are "
                                             "computed by OpenCL kernels.")
@@ -157,7 +161,20 @@ def build_parser() -> argparse.ArgumentParser:
                         "else PoCL); see `clrender devices`")
     r.add_argument("--tile-size", type=int, metavar="N", help="raster tile size in pixels: 8, 16 or 32 (default 8)")
     r.add_argument("--light-tile-size", type=int, metavar="N", help="light-culling tile size: 8, 16 or 32 (default 32)")
-    r.add_argument("--light-culling", choices=("tiled", "brute_force"), help="light culling (default tiled)")
+    r.add_argument("--light-culling", choices=LIGHT_CULLING,
+                   help="light lists per tile: culled against tile frusta, every light, each light's screen "
+                        "quad, or tiled lists with per-pixel stencil bits (default tiled; "
+                        "docs/light_accumulation.md)")
+    r.add_argument("--pipeline", choices=PIPELINES,
+                   help="renderer variant: deferred shading, Engel's light pre-pass, or Trebilco's light-indexed "
+                        "deferred (default deferred; docs/variants.md)")
+    r.add_argument("--msaa", type=int, metavar="N",
+                   help="with --pipeline light_prepass: colour sub-samples per pixel, 1, 2, 4 or 8 (default 1)")
+    r.add_argument("--light-buffer-specular", choices=LIGHT_BUFFER_SPECULAR,
+                   help="with --pipeline light_prepass: specular RGB, or its luminance coloured by the diffuse "
+                        "light (default rgb)")
+    r.add_argument("--light-buffer-precision", choices=LIGHT_BUFFER_PRECISION,
+                   help="with --pipeline light_prepass: light buffer of floats or halves (default float32)")
     r.add_argument("--tonemap", choices=("reinhard", "aces", "clamp"), help="tone-mapping operator (default reinhard)")
     r.add_argument("--exposure", type=float, metavar="X", help="exposure multiplier before tone mapping (default 1)")
     r.add_argument("--ssao", action="store_true", default=None, help="screen-space ambient occlusion (default off)")
@@ -386,7 +403,9 @@ def cmd_render(args) -> int:
             raise CLIError(f"{s}: not a file")
     options = {name: value for name, value in (
         ("tile_size", args.tile_size), ("light_tile_size", args.light_tile_size),
-        ("light_culling", args.light_culling), ("tonemap", args.tonemap), ("exposure", args.exposure),
+        ("light_culling", args.light_culling), ("pipeline", args.pipeline), ("msaa", args.msaa),
+        ("light_buffer_specular", args.light_buffer_specular),
+        ("light_buffer_precision", args.light_buffer_precision), ("tonemap", args.tonemap), ("exposure", args.exposure),
         ("ssao", args.ssao), ("ssao_radius", args.ssao_radius), ("ssao_strength", args.ssao_strength),
         ("transparency", args.transparency), ("peel_layers", args.peel_layers),
         ("max_fragments_per_pixel", args.max_fragments_per_pixel), ("refraction", args.refraction),
@@ -400,9 +419,10 @@ def cmd_render(args) -> int:
         ("hatching_scale", args.hatching_scale), ("hatching_saturation", args.hatching_saturation))
         if value is not None}
     flags = {"edge_normal_threshold_deg": "--edge-normal-threshold", "color_aa": "--fxaa"}
-    for name, value in options.items():          # name the offending flag
+    pipeline = {"pipeline": options["pipeline"]} if "pipeline" in options else {}
+    for name, value in options.items():          # name the offending flag (with the pipeline it goes with)
         try:
-            RenderConfig.from_options(**{name: value})
+            RenderConfig.from_options(**{**pipeline, name: value})
         except ValueError as exc:
             raise CLIError(f"{flags.get(name, '--' + name.replace('_', '-'))}: {exc}") from None
     RenderConfig.from_options(**options)

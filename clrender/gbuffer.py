@@ -42,6 +42,20 @@ LAYOUT: tuple[GField, ...] = (
 
 FIELDS = {f.name: f for f in LAYOUT}
 
+# The planes each pipeline's geometry pass writes (docs/variants.md); the rest are AOVs that a
+# later pass fills. The light pre-pass's thin G-buffer is depth + normal/specular power (what the
+# light buffer reads) plus velocity and triangle id; light-indexed keeps depth and id only.
+THIN_PLANES = ("depth", "normal_power", "velocity", "triangle_id")
+DEPTH_PLANES = ("depth", "triangle_id")
+
+
+def plane_mask(planes) -> int:
+    """GB_WRITE for kernels/gbuffer_pack.h: bit i set for plane i."""
+    unknown = set(planes) - set(PLANES)
+    if unknown:
+        raise ValueError(f"unknown G-buffer planes {sorted(unknown)}; planes are {PLANES}")
+    return sum(1 << PLANES.index(p) for p in set(planes))
+
 
 def kernel_defines() -> dict:
     """-D values for kernels/gbuffer.h (its #ifndef defaults must equal these; a test checks)."""

@@ -59,20 +59,28 @@ def estimate(width: int, height: int, config, scene=None) -> dict:
         "gbuffer": 4 * len(layout.PLANES) * px,
         "shade.color": 12 * px,
         "shade.light_count": 4 * px,
+        "shade.light_pairs": 8 * px + 16,     # evaluated + useful per pixel, their 64-bit sums
         "tonemap.image": 4 * px,
         "binning.tiles": 12 * tiles,
         "binning.tile_prims": 4 * 8 * tiles,
         "pipeline.constants": 4 * 64 + 8 * layout.SRGB_ENCODE_INTERVALS,   # matrices, sRGB encoder
         "setup.prims": structs.prim_dtype.itemsize * 1024,
     }
+    buffers.update(_pipeline_buffers(px, tiles, config, scene))
     if getattr(config, "ssao", False):
         buffers["ssao.ao"] = 4 * px
         if config.ssao_blur:
             buffers["ssao_blur.along_x+ao"] = 8 * px
-    if config.light_culling == "tiled":
-        ltiles = -(-width // config.light_tile_size) * -(-height // config.light_tile_size)
+    ltiles = -(-width // config.light_tile_size) * -(-height // config.light_tile_size)
+    if config.light_culling in ("tiled", "stencil"):
         buffers["light_cull.tiles"] = 24 * ltiles
         buffers["light_cull.tile_lights"] = 4 * 16 * ltiles
+    if config.light_culling == "stencil":        # initial words per pixel (docs/light_accumulation.md)
+        from .passes.light_stencil import INITIAL_WORDS
+        buffers["light_stencil.words"] = 4 * INITIAL_WORDS * px
+    if config.light_culling == "quads":
+        buffers["light_quads.tiles"] = 8 * ltiles
+        buffers["light_quads.tile_lights"] = 4 * 16 * ltiles
     if scene is not None:
         v, t, n_lights = len(scene.positions), scene.triangle_count, len(scene.lights)
         texels = sum(tex.rgba.shape[0] * tex.rgba.shape[1] for tex in scene.textures) * 4 // 3 + 1
@@ -80,10 +88,12 @@ def estimate(width: int, height: int, config, scene=None) -> dict:
             "scene.vertices": 32 * v + (12 * v if getattr(scene, "previous_positions", None) is not None else 0),
             "scene.triangles": 16 * t,
             "scene.texels": 4 * texels,
-            "scene.lights": (structs.light_dtype.itemsize + 16) * n_lights,
+            "scene.lights": (structs.light_dtype.itemsize + 16) * n_lights,   # + culling spheres
             "setup.per_triangle": (9 + structs.prim_dtype.itemsize) * t,
             "setup.prims": structs.prim_dtype.itemsize * max(1024, t + t // 8),
         })
+        if config.light_culling == "quads":               # + pixel and tile rectangles
+            buffers["light_quads.rects"] = 32 * n_lights
         if getattr(config, "transparency", "screen_door") != "screen_door" and any(
                 m.alpha_mode == "BLEND" for m in scene.materials):
             from .scene_gpu import transparent_triangle_count
@@ -103,8 +113,10 @@ def estimate(width: int, height: int, config, scene=None) -> dict:
             buffers["fxaa.ldr+luma"] = 16 * out_w * out_h
     if getattr(config, "motion_blur", False):
         from .passes.motion_blur import MAX_RADIUS
-        tiles = -(-out_w // MAX_RADIUS) * -(-out_h // MAX_RADIUS)
-        buffers["motion_blur.vectors+dilated+color+tiles"] = 28 * out_w * out_h + 8 * tiles
+        tiles_y = -(-out_h // MAX_RADIUS)
+        tiles = -(-out_w // MAX_RADIUS) * tiles_y
+        runs = out_w                                     # VEC = 1 at most: one partial max per pixel column
+        buffers["motion_blur.inv_len+color+tiles"] = 16 * out_w * out_h + 16 * runs * tiles_y + 8 * tiles
     if getattr(config, "hatching", False):
         from . import tam
         buffers["hatching.out+tam"] = 12 * out_w * out_h + tam.DEVICE_BYTES
@@ -181,3 +193,44 @@ def held_bytes(pipeline, scene_res) -> dict:
         by_owner[name] = by_owner.get(name, 0) + sum(fresh.values())
     return {"device_bytes": int(sum(seen.values())), "device_bytes_by_owner": by_owner}
 
+
+
+def _pipeline_buffers(px: int, tiles: int, config, scene) -> dict:
+    """The light pre-pass's and light-indexed's own buffers (docs/variants.md), on top of the
+    deferred pipeline's (which keeps its G-buffer as the AOV output in every pipeline)."""
+    pipeline = getattr(config, "pipeline", "deferred")
+    if pipeline == "deferred":
+        return {}
+    out = {}
+    if pipeline == "light_prepass":
+        from .passes.light_buffer import PRECISIONS, light_buffer_planes
+        out["shade.color"] = 0                              # the material pass owns the colour
+        out["light_buffer"] = light_buffer_planes(config) * PRECISIONS[config.light_buffer_precision][0](
+            0).itemsize * px
+        out["material.color+spread"] = 12 * px + (12 * px if config.msaa > 2 else 4)
+        if config.msaa > 1:                                 # a setup, binning and raster per sub-sample
+            t = scene.triangle_count if scene is not None else 0
+            prims = structs.prim_dtype.itemsize * max(1024, t + t // 8)
+            out["msaa_geometry"] = config.msaa * (8 * px + 12 * tiles + 4 * 8 * tiles + prims
+                                                  + (9 + structs.prim_dtype.itemsize) * t)
+    return out
+
+
+def pixel_buffers(config) -> dict:
+    """Bytes per pixel of every per-pixel buffer a frame goes through, by role (Frame.stats
+    "bytes_per_pixel"; docs/variants.md): what the pipeline variants trade against each other."""
+    pipeline = getattr(config, "pipeline", "deferred")
+    planes = {"deferred": layout.PLANES, "light_prepass": layout.THIN_PLANES,
+              "light_indexed": layout.DEPTH_PLANES}[pipeline]
+    out = {"visibility": 8, "gbuffer_geometry_pass": 4 * len(planes)}
+    if pipeline == "light_prepass":
+        from .passes.light_buffer import PRECISIONS, light_buffer_planes
+        out["light_buffer"] = light_buffer_planes(config) * PRECISIONS[config.light_buffer_precision][0](0).itemsize
+        if config.msaa > 1:
+            out["msaa_visibility"] = 8 * config.msaa
+            if config.msaa > 2:
+                out["msaa_resolve"] = 12
+    out["gbuffer_aov_planes"] = 4 * (len(layout.PLANES) - len(planes))
+    out["color"] = 12
+    out["total"] = sum(out.values())
+    return out

@@ -16,6 +16,9 @@ from .passes import (AbufferPass, BinningPass, CompositePass, FragmentsPass, GBu
                      SsaoPass, TonemapPass)
 
 MAX_RETRIES = 8
+# The G-buffer planes each pipeline's first geometry pass writes (docs/variants.md).
+GEOMETRY_PLANES = {"deferred": layout.PLANES, "light_prepass": layout.THIN_PLANES,
+                   "light_indexed": layout.DEPTH_PLANES}
 
 
 class Pipeline:
@@ -26,8 +29,10 @@ class Pipeline:
         # BLEND triangles: left to the transparency passes (A-buffer, peeling) or dithered into
         # the G-buffer (screen door); a scene without any renders exactly as without this.
         fragments = config.transparency != "screen_door"
-        self.passes = [SetupPass(device, config, select="opaque" if fragments else "dither"),
-                       BinningPass(device, config), RasterPass(device, config), GBufferPass(device, config),
+        self.select = "opaque" if fragments else "dither"
+        self.raster = RasterPass(device, config)
+        self.passes = [SetupPass(device, config, select=self.select), BinningPass(device, config), self.raster,
+                       GBufferPass(device, config, planes=GEOMETRY_PLANES[config.pipeline]),
                        ParticlesPass(device, config)]
         self.transparency = []          # run only for scenes with BLEND triangles; allocated on first use
         if fragments:
@@ -35,8 +40,17 @@ class Pipeline:
             resolve = (AbufferPass if config.transparency == "abuffer" else PeelPass)(device, config, walk)
             self.transparency = [walk, resolve, CompositePass(device, config)]
             self.passes.append(walk)
-        if config.light_culling == "tiled":        # brute force launches no culling kernel
+        # Per-tile light lists (docs/light_accumulation.md): tiled culling, or the lights' screen
+        # quads; "stencil" adds per-pixel bits over the tiled lists. Brute force launches no culling kernel.
+        if config.light_culling in ("tiled", "stencil"):
             self.light_cull = LightCullPass(device, config)
+            self.passes.append(self.light_cull)
+            if config.light_culling == "stencil":
+                from .passes.light_stencil import LightStencilPass
+                self.passes.append(LightStencilPass(device, config))
+        elif config.light_culling == "quads":
+            from .passes.light_quads import LightQuadsPass
+            self.light_cull = LightQuadsPass(device, config)
             self.passes.append(self.light_cull)
         else:
             self.light_cull = None
@@ -48,7 +62,7 @@ class Pipeline:
         self.shadow = ShadowPass(device, config) if config.shadows else None
         if self.shadow is not None:
             self.passes.append(self.shadow)
-        self.passes += [ShadePass(device, config), *self.transparency[1:]]
+        self.passes += [*self._lighting_passes(device, config), *self.transparency[1:]]
         # Over-sampling: everything so far renders k·W × k·H; the resolve filters down to W × H.
         self.post = ([ResolvePass(device, config)] if config.supersample > 1 else []) + self._post_passes(device, config)
         self.passes += self.post
@@ -58,6 +72,23 @@ class Pipeline:
         self.matrices = {name: zeros(self.queue, 16, np.float32)
                          for name in ("view_proj", "prev_view_proj", "view_matrix", "camera_params")}
         self.constants = {"srgb_encode": cla.to_device(self.queue, layout.srgb_encode_table())}
+
+    def _lighting_passes(self, device, config) -> list:
+        """From the light lists to the colour (docs/variants.md). deferred: shading from the
+        G-buffer. light_prepass: the light buffer from the thin G-buffer, the geometry again
+        (at the msaa sub-samples), the material pass. light_indexed: the raster again, then
+        forward shading of the visible fragments with their tile's lights."""
+        if config.pipeline == "deferred":
+            return [ShadePass(device, config)]
+        from .passes.second_geometry import RasterAgainPass, SampleGeometryPass
+        again = (RasterAgainPass(device, config, self.raster) if config.msaa == 1 else
+                 SampleGeometryPass(device, config, config.msaa, self.select))
+        if config.pipeline == "light_prepass":
+            from .passes.light_buffer import LightBufferPass
+            from .passes.material import MaterialPass
+            return [LightBufferPass(device, config), again, MaterialPass(device, config, config.msaa)]
+        from .passes.forward_shade import ForwardShadePass
+        return [again, ForwardShadePass(device, config)]
 
     @staticmethod
     def _post_passes(device, config) -> list:
@@ -196,6 +227,10 @@ class Pipeline:
         stats["tile_size"] = self.config.tile_size
         stats["retries"] = retries
         stats["supersample"] = k
+        stats["pipeline"] = self.config.pipeline
+        stats["geometry_passes"] = 1 if self.config.pipeline == "deferred" else 1 + self.config.msaa
+        from .memory import pixel_buffers
+        stats["bytes_per_pixel"] = pixel_buffers(self.config)
         stats.update(self._fragment_stats(outputs["fragment_count"], transparent))
         for p in self.transparency if transparent else ():
             stats.update(p.stage_stats())         # breakdowns of their pass's ms, not added to total_ms
@@ -206,6 +241,9 @@ class Pipeline:
             stats.update(self.light_cull.tile_stats())
         else:
             stats.update(lights_per_tile_avg=float(res["n_lights"]), lights_per_tile_max=res["n_lights"])
+        for p in self.passes:                      # (pixel, light) pairs the shading evaluated / needed
+            if hasattr(p, "pair_stats"):
+                stats.update(p.pair_stats())
         return outputs, stats
 
     def _fragment_stats(self, counts, transparent) -> dict:

@@ -14,12 +14,16 @@ from .device import Device, DeviceInfo
 from .scene import Scene
 
 TILE_SIZES = (8, 16, 32)
-LIGHT_CULLING = ("tiled", "brute_force")
+LIGHT_CULLING = ("tiled", "brute_force", "quads", "stencil")   # docs/light_accumulation.md
 TONEMAPS = ("reinhard", "aces", "clamp")
 SHADOW_FILTERS = ("pcf3x3", "poisson", "hard")
 TRANSPARENCY = ("abuffer", "depth_peeling", "screen_door")
 SUPERSAMPLE_FILTERS = ("box", "lanczos2", "mitchell")
 COLOR_AA = ("none", "fxaa")
+PIPELINES = ("deferred", "light_prepass", "light_indexed")     # docs/variants.md
+MSAA = (1, 2, 4, 8)
+LIGHT_BUFFER_SPECULAR = ("rgb", "luminance")
+LIGHT_BUFFER_PRECISION = ("float32", "float16")
 MAX_PEEL_LAYERS = 64
 
 
@@ -30,9 +34,13 @@ def _is_real(x) -> bool:
 @dataclass(frozen=True)
 class RenderConfig:
     """Render options. Unknown names are errors (see `RenderConfig.from_options`)."""
+    pipeline: str = "deferred"  # "deferred", "light_prepass" or "light_indexed" (docs/variants.md)
+    msaa: int = 1              # light_prepass: colour sub-samples per pixel (1, 2, 4, 8; D3D standard patterns)
+    light_buffer_specular: str = "rgb"       # light_prepass: "rgb" or "luminance" (the classic LPP trade-off)
+    light_buffer_precision: str = "float32"  # light_prepass: "float32" or "float16" light buffer
     tile_size: int = 8         # raster tiles; bench.gbuffer on a 2-core AVX-512 CPU: 8 < 16 < 32 ms
     light_tile_size: int = 32  # light-culling tiles; bench.lights at 1024/4096 lights: 32 < 16 < 8 ms
-    light_culling: str = "tiled"
+    light_culling: str = "tiled"   # "brute_force", "quads", "stencil" (docs/light_accumulation.md)
     light_depth_mask: bool = False   # Harada's 2.5D culling: 32 depth slices per tile
     tonemap: str = "reinhard"
     exposure: float = 1.0
@@ -94,6 +102,32 @@ class RenderConfig:
         self._check_shadow_options()
         self._check_transparency_options()
         self._check_aa_options()
+        self._check_pipeline_options()
+
+    def _check_pipeline_options(self):
+        if self.pipeline not in PIPELINES:
+            raise ValueError(f"pipeline must be one of {PIPELINES}, got {self.pipeline!r}")
+        if not (isinstance(self.msaa, (int, np.integer)) and not isinstance(self.msaa, bool) and self.msaa in MSAA):
+            raise ValueError(f"msaa must be one of {MSAA}, got {self.msaa!r}")
+        if self.light_buffer_specular not in LIGHT_BUFFER_SPECULAR:
+            raise ValueError(f"light_buffer_specular must be one of {LIGHT_BUFFER_SPECULAR}, "
+                             f"got {self.light_buffer_specular!r}")
+        if self.light_buffer_precision not in LIGHT_BUFFER_PRECISION:
+            raise ValueError(f"light_buffer_precision must be one of {LIGHT_BUFFER_PRECISION}, "
+                             f"got {self.light_buffer_precision!r}")
+        if self.pipeline != "light_prepass":
+            for name, default in (("msaa", 1), ("light_buffer_specular", "rgb"), ("light_buffer_precision", "float32")):
+                if getattr(self, name) != default:
+                    raise ValueError(f"{name} applies to pipeline='light_prepass' (the light buffer and its colour "
+                                     f"pass), not {self.pipeline!r}" + (
+                                         "; over-sampling (supersample) anti-aliases every pipeline"
+                                         if name == "msaa" else ""))
+        if self.pipeline != "deferred" and self.light_culling not in ("tiled", "brute_force"):
+            raise ValueError(f"light_culling={self.light_culling!r} is a light-accumulation variant of the deferred "
+                             f"pipeline; pipeline={self.pipeline!r} takes 'tiled' or 'brute_force'")
+        if self.pipeline == "light_indexed" and self.ssao:
+            raise ValueError("ssao needs the G-buffer's normals, which pipeline='light_indexed' never stores "
+                             "(depth and triangle id only); use 'deferred' or 'light_prepass'")
 
     def _check_aa_options(self):
         if not (isinstance(self.supersample, (int, np.integer)) and not isinstance(self.supersample, bool)

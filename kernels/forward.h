@@ -52,17 +52,11 @@ typedef struct {
     LightEnv env;
 } Forward;
 
-#if SHADOWS
-#define FORWARD_ENV_SHADOWS , { shadow_atlas, atlas_stride, shadow_bias, shadow_slope_bias, shadow_normal_offset }, \
-                            shadow_views, sun_cascades, spot_view0, spot_plane0
-#else
-#define FORWARD_ENV_SHADOWS
-#endif
 /* A `Forward` from FORWARD_PARAMS. */
 #define FORWARD_INIT { { prims, positions, normals, uvs, triangles, materials, texels, srgb_lut, tex_infos, \
                          tex_levels }, camera, width, height, ambient, n_lights, \
                        tile_light_offsets, tile_light_counts, list_capacity, light_tiles_x, \
-                       { lights, tile_lights, has_sun, sun FORWARD_ENV_SHADOWS } }
+                       LIGHT_ENV_INIT }
 
 typedef struct {
     floatV r, g, b;    /* albedo·(ambient + diffuse) + specular, linear HDR */

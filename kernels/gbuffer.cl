@@ -9,7 +9,10 @@
  * and the motion: the surface point interpolated from the previous frame's vertex positions
  * (prev_positions: the scene's own positions unless objects moved, Scene.set_transform) and
  * projected by the previous frame's view-projection. Everything is packed per
- * the layout table (clrender/gbuffer.py, kernels/gbuffer.h).
+ * the layout table (clrender/gbuffer.py, kernels/gbuffer.h; gbuffer_pack.h).
+ * GB_WRITE (bit i: plane i) selects the planes written: all for the deferred pipeline; the
+ * light pre-pass's thin G-buffer skips albedo/specular intensity (built with SURFACE_TEXTURES
+ * 0: no texture read); light-indexed writes depth and id only, and evaluates no surface.
  *
  * Buffers: vis_depth float[W·H], vis_prim int[W·H]; prims Prim[*]; scene positions/normals
  *          float[3V], uvs float[2V], triangles int[3T], materials Material[M]; textures;
@@ -23,7 +26,7 @@
 #include "gbuffer.h"
 #include "vec.h"
 
-#include "surface_vec.h"
+#include "gbuffer_pack.h"
 
 kernel void gbuffer_resolve(global const float* vis_depth, global const int* vis_prim,
                             global const Prim* prims, int width, int height, float far,
@@ -63,49 +66,28 @@ kernel void gbuffer_resolve(global const float* vis_depth, global const int* vis
 #endif
     intV w = select((intV)0, pidx, fg);
     uintV planes[GB_PLANES];            /* background unless a lane has a prim */
-    for (int i = 0; i < GB_PLANES; ++i) planes[i] = 0;
-    GB_PUT(planes, LINEAR_DEPTH, as_uintV((floatV)INFINITY));
-    GB_PUT(planes, TRIANGLE_ID, (uintV)0xffffffffu);
+    gbuffer_background(planes);
     if (ANY(fg)) {
+        uintV planes_fg[GB_PLANES];
+#if GB_WRITE & ~((1 << GB_LINEAR_DEPTH_PLANE) | (1 << GB_TRIANGLE_ID_PLANE))
         const SceneV scene = { prims, positions, normals, uvs, triangles, materials, texels, srgb_lut,
                                tex_infos, tex_levels };
         const SurfaceV sf = surface_at(&scene, w, fg, px, py);
-        const floatV c0 = sf.c0, c1 = sf.c1, c2 = sf.c2;
-        const intV i0 = sf.i0, i1 = sf.i1, i2 = sf.i2, tri = sf.tri;
-        const vec3V n = sf.n;
-        const floatV cr = sf.r, cg = sf.g, cb = sf.b, spec_i = sf.spec_i, spec_p = sf.spec_p;
-
-        floatV vx = 0.0f, vy = 0.0f;
-        if (has_prev) {
-            vec3V wp = interp3(gather3(prev_positions, i0), gather3(prev_positions, i1), gather3(prev_positions, i2),
-                               c0, c1, c2);
-            global const float* M = prev_view_proj;
-            floatV qx = M[0] * wp.x + M[1] * wp.y + M[2] * wp.z + M[3];
-            floatV qy = M[4] * wp.x + M[5] * wp.y + M[6] * wp.z + M[7];
-            floatV qw = M[12] * wp.x + M[13] * wp.y + M[14] * wp.z + M[15];
-            intV ahead = qw > 0.0f;
-            floatV prev_x = (qx / qw + 1.0f) * 0.5f * (float)width, prev_y = (1.0f - qy / qw) * 0.5f * (float)height;
-            vx = select((floatV)0.0f, convert_floatV(px) + 0.5f - prev_x, ahead);
-            vy = select((floatV)0.0f, convert_floatV(py) + 0.5f - prev_y, ahead);
-        }
-        uintV vel = pack_half2V(vx, vy);
-
+        const uintV vel = pack_velocity(&sf, prev_view_proj, prev_positions, has_prev, width, height, px, py);
+        gbuffer_pack(&sf, depth / far, vel, srgb_encode, planes_fg);
+#else                                   /* depth and id only (light-indexed): no surface */
+        for (int i = 0; i < GB_PLANES; ++i) planes_fg[i] = 0;
+        GB_PUT(planes_fg, LINEAR_DEPTH, as_uintV(depth / far));
+        GB_PUT(planes_fg, TRIANGLE_ID, as_uintV(GATHER_M(intV, prims, w, tri)));
+#endif
         uintV ufg = as_uintV(fg);
 #if VEC == 1
         ufg = fg ? 0xffffffffu : 0u;
 #endif
-        uintV planes_fg[GB_PLANES];
-        for (int i = 0; i < GB_PLANES; ++i) planes_fg[i] = 0;
-        GB_PUT(planes_fg, ALBEDO, pack_srgb8x3V(cr, cg, cb, srgb_encode));
-        GB_PUT(planes_fg, SPECULAR_INTENSITY, unormV(spec_i, 8));
-        GB_PUT(planes_fg, LINEAR_DEPTH, as_uintV(depth / far));
-        GB_PUT(planes_fg, NORMAL, pack_oct12x2V(n.x, n.y, n.z));
-        GB_PUT(planes_fg, SPECULAR_POWER, pack_log2unorm8V(spec_p));
-        GB_PUT(planes_fg, VELOCITY, vel);
-        GB_PUT(planes_fg, TRIANGLE_ID, as_uintV(tri));
         for (int i = 0; i < GB_PLANES; ++i) planes[i] = select(planes[i], planes_fg[i], ufg);
     }
     for (int i = 0; i < GB_PLANES; ++i) {
+        if (!(GB_WRITE & (1 << i))) continue;
         global uint* dst = gbuffer + i * npix + pix0;
         if (pix0 + VEC <= npix) {
             vstoreV(planes[i], 0, dst);

@@ -12,6 +12,15 @@
  * from the view depth. When `shadow_out` is not null each visibility is also written to its
  * plane (the opaque pass's Frame.shadow); fragments pass null.
  * VEC-wide (vec.h): the loop is uniform across lanes, light records are scalar loads.
+ *
+ * accumulate_lights_counted(): the same, for shade.cl, which also counts per lane the (pixel,
+ * light) pairs it evaluates and the useful ones (docs/light_accumulation.md): a pair is useful
+ * where light_reach() holds, d² < r² and, for a spot, dot(-L, dir) > cos_outer (A·S can be > 0).
+ * With STENCIL (shade.cl after light_stencil.cl) the loop walks the tile's list by the bits of
+ * the pixels' stencil words (bit k of word k/32: entry k reaches the pixel): a lane takes light
+ * k only where its bit is set, a light no lane takes is skipped, and the distance test is not
+ * made (the stencil pass made it, with light_reach() on the same position). The forward passes
+ * call accumulate_lights(), which counts nothing and is built without STENCIL.
  */
 #ifndef CLRENDER_LIGHTING_H
 #define CLRENDER_LIGHTING_H
@@ -23,6 +32,9 @@
 #endif
 #ifndef SHADOWS
 #define SHADOWS 0
+#endif
+#ifndef STENCIL
+#define STENCIL 0
 #endif
 #include "shadow.h"
 
@@ -39,6 +51,29 @@ typedef struct {
 #endif
 } LightEnv;
 
+/* A LightEnv from the kernel parameters of the same names (shade.cl, light_buffer.cl,
+ * forward_shade.cl, forward.h). */
+#if SHADOWS
+#define LIGHT_ENV_INIT { lights, tile_lights, has_sun, sun, \
+                         { shadow_atlas, atlas_stride, shadow_bias, shadow_slope_bias, shadow_normal_offset }, \
+                         shadow_views, sun_cascades, spot_view0, spot_plane0 }
+#else
+#define LIGHT_ENV_INIT { lights, tile_lights, has_sun, sun }
+#endif
+
+/* The lights a tile walks: (first, count) in its list, or every light with BRUTE_FORCE. A list
+ * cut short by an overflow (the frame is redone) is read only up to the capacity. */
+static inline int2 tile_light_range(global const int* tile_light_offsets, global const int* tile_light_counts,
+                                    int list_capacity, int tile, int n_lights)
+{
+#if BRUTE_FORCE
+    return (int2)(0, n_lights);
+#else
+    const int first = tile_light_offsets[tile];
+    return (int2)(first, max(min(tile_light_counts[tile], list_capacity - first), 0));
+#endif
+}
+
 /* Stores the run's `valid` lanes of v into a float plane at pixel p0. */
 static inline void store_plane(global float* plane, int p0, int valid, floatV v)
 {
@@ -49,58 +84,205 @@ static inline void store_plane(global float* plane, int p0, int valid, floatV v)
     for (int l = 0; l < valid; ++l) plane[p0 + l] = LANE_F(v, l);
 }
 
-/* Light buffer sums of the lanes in `fg` (see the header). pix_x/pix_y: pixel coordinates
- * (Poisson rotation); shadow_out (may be null), p0, valid, npix: where visibilities go. */
-static void accumulate_lights(const LightEnv* env, int first, int count, intV fg,
-                              floatV px, floatV py_, floatV pz, floatV nx, floatV ny, floatV nz,
-                              floatV vx, floatV vy, floatV vz, floatV spec_i, floatV spec_p, floatV depth,
-                              intV pix_x, int pix_y, global float* shadow_out, int p0, int valid, int npix,
-                              floatV* dr, floatV* dg, floatV* db, floatV* sr, floatV* sg, floatV* sb)
+/* The view rays through the run's pixel centres (px0 + lane, py) and the world positions at
+ * view depth `depth` on them (report II.3, "Question du Z"): dir = F + x·R·tan_x + y·U·tan_y
+ * (camera = eye, F, R·tan_x, U·tan_y as float4 each), P = eye + depth·dir. shade.cl and
+ * light_stencil.cl rebuild positions with this one function, so their light tests agree. */
+static inline void pixel_positions(global const float* camera, int width, int height, int px0, int py, floatV depth,
+                                   floatV* dx, floatV* dy, floatV* dz, floatV* px, floatV* py_, floatV* pz)
 {
+    const float3 eye = vload4(0, camera).xyz, F = vload4(1, camera).xyz;
+    const float3 Rs = vload4(2, camera).xyz, Us = vload4(3, camera).xyz;
+    floatV xn = (convert_floatV(px0 + LANES) + 0.5f) * (2.0f / (float)width) - 1.0f;
+    floatV yn = 1.0f - ((float)py + 0.5f) * (2.0f / (float)height);
+    *dx = F.x + xn * Rs.x + yn * Us.x; *dy = F.y + xn * Rs.y + yn * Us.y; *dz = F.z + xn * Rs.z + yn * Us.z;
+    *px = eye.x + depth * *dx; *py_ = eye.y + depth * *dy; *pz = eye.z + depth * *dz;
+}
+
+/* The positions P (pixel_positions) and the unit vectors V from them to the eye. */
+typedef struct { floatV px, py, pz, vx, vy, vz; } ViewPointV;
+
+static inline ViewPointV view_point(global const float* camera, int width, int height, int px0, int py, floatV depth)
+{
+    ViewPointV v;
+    floatV dx, dy, dz;
+    pixel_positions(camera, width, height, px0, py, depth, &dx, &dy, &dz, &v.px, &v.py, &v.pz);
+    const floatV inv_d = rsqrt(dx * dx + dy * dy + dz * dz);
+    v.vx = -dx * inv_d; v.vy = -dy * inv_d; v.vz = -dz * inv_d;
+    return v;
+}
+
+/* The run's light count (the list length) and pair counts (evaluated, useful) per pixel. */
+static inline void store_light_counts(global int* light_count, global int* light_pairs, int npix, int p0, int valid,
+                                      int count, intV evaluated, intV useful)
+{
+    if (valid == VEC) {
+        vstoreV((intV)count, 0, light_count + p0);
+        vstoreV(evaluated, 0, light_pairs + p0);
+        vstoreV(useful, 0, light_pairs + npix + p0);
+        return;
+    }
+    for (int l = 0; l < valid; ++l) {
+        light_count[p0 + l] = count;
+        light_pairs[p0 + l] = LANE_I(evaluated, l);
+        light_pairs[npix + p0 + l] = LANE_I(useful, l);
+    }
+}
+
+/* L = light position - P (not normalized) and d² = |L|²: the arithmetic every test of a
+ * light's reach makes (shade.cl, light_stencil.cl), so their answers agree bit for bit. */
+static inline floatV light_vector(const Light* lt, floatV px, floatV py_, floatV pz,
+                                  floatV* lx, floatV* ly, floatV* lz)
+{
+    *lx = lt->position[0] - px; *ly = lt->position[1] - py_; *lz = lt->position[2] - pz;
+    return *lx * *lx + *ly * *ly + *lz * *lz;
+}
+
+/* cos of the angle between a spot's axis and -L, L unit. */
+static inline floatV spot_cos(const Light* lt, floatV lx, floatV ly, floatV lz)
+{
+    return -(lx * lt->direction[0] + ly * lt->direction[1] + lz * lt->direction[2]);
+}
+
+/* The lanes whose point P the light reaches: d² < r² and, for a spot, inside its outer cone
+ * (the region where A·S can be > 0). The stencil pass's test and the useful pairs' count. */
+static inline intV light_reach(const Light* lt, floatV px, floatV py_, floatV pz)
+{
+    floatV lx, ly, lz;
+    const floatV d2 = light_vector(lt, px, py_, pz, &lx, &ly, &lz);
+    intV reach = d2 < lt->radius * lt->radius;
+    if (lt->type == LIGHT_SPOT && ANY(reach)) {
+        const floatV inv_l = rsqrt(fmax(d2, 1e-30f));
+        reach &= spot_cos(lt, lx * inv_l, ly * inv_l, lz * inv_l) > lt->cos_outer;
+    }
+    return reach;
+}
+
+/* One light's terms added at the lanes it lights. `take` (STENCIL): the lanes whose stencil
+ * bit is set, which replaces the distance test; otherwise the test is made on the lanes in
+ * fg. `useful` (may be null): +1 on the lanes the light reaches (light_reach()). */
+static inline void add_light(const LightEnv* env, const Light lt, intV fg, intV take,
+                             floatV px, floatV py_, floatV pz, floatV nx, floatV ny, floatV nz,
+                             floatV vx, floatV vy, floatV vz, floatV spec_i, floatV spec_p,
+                             intV pix_x, int pix_y, global float* shadow_out, int p0, int valid, int npix,
+                             intV* useful, floatV* dr, floatV* dg, floatV* db, floatV* sr, floatV* sg, floatV* sb)
+{
+    floatV lx, ly, lz;
+    floatV d2 = light_vector(&lt, px, py_, pz, &lx, &ly, &lz);
+    float r2 = lt.radius * lt.radius;
+#if STENCIL
+    intV near_enough = take;               /* the stencil pass tested the distance */
+    intV reach = take & (d2 < r2);
+#else
+    intV near_enough = fg & (d2 < r2);
+    if (!ANY(near_enough)) return;
+    intV reach = near_enough;
+#endif
+    floatV q = 1.0f - d2 / r2;
+    floatV atten = select((floatV)0.0f, q * q * q, near_enough);
+    floatV inv_l = rsqrt(fmax(d2, 1e-30f));
+    lx *= inv_l; ly *= inv_l; lz *= inv_l;
+    if (lt.type == LIGHT_SPOT) {
+        floatV cos_a = spot_cos(&lt, lx, ly, lz);
+        reach &= cos_a > lt.cos_outer;
+        floatV s = clamp((cos_a - lt.cos_outer) / fmax(lt.cos_inner - lt.cos_outer, 1e-4f), 0.0f, 1.0f);
+        atten *= s * s;
+    }
+    if (useful) *useful += select((intV)0, (intV)1, reach);
+    floatV ndotl = nx * lx + ny * ly + nz * lz;
+#if SHADOWS
+    if (lt.shadow >= 0) {              /* a shadowed spot: only where it lights */
+        intV lit = fg & (atten > 0.0f);
+        floatV vis = 1.0f;
+        if (ANY(lit)) {
+            vis = shadow_visibility(&env->sp, env->views + env->spot_view0 + lt.shadow, px, py_, pz,
+                                    nx, ny, nz, ndotl, pix_x, pix_y);
+            atten *= vis;
+        }
+        if (shadow_out)
+            store_plane(shadow_out + (env->spot_plane0 + lt.shadow) * npix, p0, valid,
+                        select((floatV)1.0f, vis, lit));
+    }
+#endif
+    floatV hx = lx + vx, hy = ly + vy, hz = lz + vz;
+    floatV inv_h = rsqrt(fmax(hx * hx + hy * hy + hz * hz, 1e-30f));
+    floatV ndoth = fmax((nx * hx + ny * hy + nz * hz) * inv_h, 0.0f);
+    floatV spec = select((floatV)0.0f, spec_i * powr(ndoth, spec_p), ndotl > 0.0f);
+    floatV diff = atten * fmax(ndotl, 0.0f);
+    spec *= atten;
+    *dr += diff * lt.color[0]; *dg += diff * lt.color[1]; *db += diff * lt.color[2];
+    *sr += spec * lt.color[0]; *sg += spec * lt.color[1]; *sb += spec * lt.color[2];
+}
+
+#if STENCIL
+/* OR of the lanes' words. */
+static inline uint or_lanes(uintV w)
+{
+#if VEC == 1
+    return w;
+#else
+#if VEC == 16
+    uint8 w8 = w.lo | w.hi;
+#elif VEC == 8
+    uint8 w8 = w;
+#endif
+#if VEC >= 8
+    uint4 w4 = w8.lo | w8.hi;
+#else
+    uint4 w4 = w;
+#endif
+    uint2 w2 = w4.lo | w4.hi;
+    return w2.x | w2.y;
+#endif
+}
+#endif
+
+/* Light buffer sums of the lanes in `fg` (see the header), counting pairs. pix_x/pix_y: pixel
+ * coordinates (Poisson rotation); shadow_out (may be null), p0, valid, npix: where visibilities
+ * go. stencil, stencil_words (STENCIL): the run's words are stencil[w·npix + p0 + lane] for
+ * w < stencil_words (a list longer than 32·stencil_words overflowed: the frame is redone).
+ * evaluated, useful (may be null): per lane, += pairs evaluated / useful. */
+static void accumulate_lights_counted(const LightEnv* env, int first, int count, intV fg,
+                                      global const uint* stencil, int stencil_words, intV* evaluated, intV* useful,
+                                      floatV px, floatV py_, floatV pz, floatV nx, floatV ny, floatV nz,
+                                      floatV vx, floatV vy, floatV vz, floatV spec_i, floatV spec_p, floatV depth,
+                                      intV pix_x, int pix_y, global float* shadow_out, int p0, int valid, int npix,
+                                      floatV* dr, floatV* dg, floatV* db, floatV* sr, floatV* sg, floatV* sb)
+{
+#if STENCIL
+    const int words = min((count + 31) / 32, stencil_words);
+    for (int w = 0; w < words; ++w) {
+        global const uint* plane = stencil + w * npix;
+        uintV word = 0u;
+        if (valid == VEC) {
+            word = vloadV(0, plane + p0);
+        } else {
+            for (int l = 0; l < valid; ++l) LANE_I(word, l) = (int)plane[p0 + l];
+        }
+        word = select((uintV)0u, word, fg);
+        uint any = or_lanes(word);
+        while (any != 0u) {                /* the lights some lane takes, in list order */
+            const int j = 31 - clz(any & (0u - any));
+            any &= any - 1u;
+            const intV take = fg & ((word & (1u << j)) != 0u);
+            if (evaluated) *evaluated += select((intV)0, (intV)1, take);
+            add_light(env, env->lights[env->tile_lights[first + 32 * w + j]], fg, take, px, py_, pz, nx, ny, nz,
+                      vx, vy, vz, spec_i, spec_p, pix_x, pix_y, shadow_out, p0, valid, npix, useful,
+                      dr, dg, db, sr, sg, sb);
+        }
+    }
+#else
+    if (evaluated) *evaluated += select((intV)0, (intV)count, fg);
     for (int k = 0; k < count; ++k) {
 #if BRUTE_FORCE
         const Light lt = env->lights[k];
 #else
         const Light lt = env->lights[env->tile_lights[first + k]];
 #endif
-        floatV lx = lt.position[0] - px, ly = lt.position[1] - py_, lz = lt.position[2] - pz;
-        floatV d2 = lx * lx + ly * ly + lz * lz;
-        float r2 = lt.radius * lt.radius;
-        intV near_enough = fg & (d2 < r2);
-        if (!ANY(near_enough)) continue;
-        floatV q = 1.0f - d2 / r2;
-        floatV atten = select((floatV)0.0f, q * q * q, near_enough);
-        floatV inv_l = rsqrt(fmax(d2, 1e-30f));
-        lx *= inv_l; ly *= inv_l; lz *= inv_l;
-        if (lt.type == LIGHT_SPOT) {
-            floatV cos_a = -(lx * lt.direction[0] + ly * lt.direction[1] + lz * lt.direction[2]);
-            floatV s = clamp((cos_a - lt.cos_outer) / fmax(lt.cos_inner - lt.cos_outer, 1e-4f), 0.0f, 1.0f);
-            atten *= s * s;
-        }
-        floatV ndotl = nx * lx + ny * ly + nz * lz;
-#if SHADOWS
-        if (lt.shadow >= 0) {              /* a shadowed spot: only where it lights */
-            intV lit = fg & (atten > 0.0f);
-            floatV vis = 1.0f;
-            if (ANY(lit)) {
-                vis = shadow_visibility(&env->sp, env->views + env->spot_view0 + lt.shadow, px, py_, pz,
-                                        nx, ny, nz, ndotl, pix_x, pix_y);
-                atten *= vis;
-            }
-            if (shadow_out)
-                store_plane(shadow_out + (env->spot_plane0 + lt.shadow) * npix, p0, valid,
-                            select((floatV)1.0f, vis, lit));
-        }
-#endif
-        floatV hx = lx + vx, hy = ly + vy, hz = lz + vz;
-        floatV inv_h = rsqrt(fmax(hx * hx + hy * hy + hz * hz, 1e-30f));
-        floatV ndoth = fmax((nx * hx + ny * hy + nz * hz) * inv_h, 0.0f);
-        floatV spec = select((floatV)0.0f, spec_i * powr(ndoth, spec_p), ndotl > 0.0f);
-        floatV diff = atten * fmax(ndotl, 0.0f);
-        spec *= atten;
-        *dr += diff * lt.color[0]; *dg += diff * lt.color[1]; *db += diff * lt.color[2];
-        *sr += spec * lt.color[0]; *sg += spec * lt.color[1]; *sb += spec * lt.color[2];
+        add_light(env, lt, fg, fg, px, py_, pz, nx, ny, nz, vx, vy, vz, spec_i, spec_p, pix_x, pix_y,
+                  shadow_out, p0, valid, npix, useful, dr, dg, db, sr, sg, sb);
     }
+#endif
     if (env->has_sun) {                    /* the sun: every foreground pixel, no falloff */
         global const float* sun = env->sun;
         const float lx = -sun[0], ly = -sun[1], lz = -sun[2];
@@ -128,5 +310,18 @@ static void accumulate_lights(const LightEnv* env, int first, int count, intV fg
         *dr += diff * sun[3]; *dg += diff * sun[4]; *db += diff * sun[5];
         *sr += spec * sun[3]; *sg += spec * sun[4]; *sb += spec * sun[5];
     }
+}
+
+/* Light buffer sums of the lanes in `fg` (see the header), counting nothing: the forward passes.
+ * pix_x/pix_y: pixel coordinates (Poisson rotation); shadow_out (may be null), p0, valid, npix:
+ * where visibilities go. */
+static void accumulate_lights(const LightEnv* env, int first, int count, intV fg,
+                              floatV px, floatV py_, floatV pz, floatV nx, floatV ny, floatV nz,
+                              floatV vx, floatV vy, floatV vz, floatV spec_i, floatV spec_p, floatV depth,
+                              intV pix_x, int pix_y, global float* shadow_out, int p0, int valid, int npix,
+                              floatV* dr, floatV* dg, floatV* db, floatV* sr, floatV* sg, floatV* sb)
+{
+    accumulate_lights_counted(env, first, count, fg, 0, 0, 0, 0, px, py_, pz, nx, ny, nz, vx, vy, vz, spec_i,
+                              spec_p, depth, pix_x, pix_y, shadow_out, p0, valid, npix, dr, dg, db, sr, sg, sb);
 }
 #endif

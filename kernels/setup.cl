@@ -121,13 +121,13 @@ static int floor_div256(int v) { return v >> 8; }   /* arithmetic shift = floor 
 
 /* Builds prim `k` of the fan into *p; returns its status (STATUS_EMITTED when kept). */
 static int make_prim(const ClipVert* poly, int k, int tri, int material, uint mat_flags, int select,
-                     int width, int height, Prim* p)
+                     int width, int height, int2 sample, Prim* p)
 {
     const ClipVert* v[3] = { &poly[0], &poly[k + 1], &poly[k + 2] };
     for (int i = 0; i < 3; ++i) {
         float w = v[i]->c.w;
-        p->x[i] = snap(v[i]->c.x / w, (float)width);
-        p->y[i] = snap_y(v[i]->c.y / w, (float)height);
+        p->x[i] = snap(v[i]->c.x / w, (float)width) - sample.x;     /* sub-sample: contract §10 */
+        p->y[i] = snap_y(v[i]->c.y / w, (float)height) - sample.y;
 #if ORTHO
         p->inv_w[i] = v[i]->c.z;          /* depth itself: interpolated linearly */
 #else
@@ -169,7 +169,7 @@ static int make_prim(const ClipVert* poly, int k, int tri, int material, uint ma
 static int setup_triangle(int t, global const float* positions, global const int* triangles,
                           global const int* tri_material, global const Material* materials,
                           global const float* view_proj, int width, int height, float near, int select,
-                          global Prim* dst, int room, uchar* status)
+                          int2 sample, global Prim* dst, int room, uchar* status)
 {
     const int material = tri_material[t];
     const uint mat_flags = materials[material].flags;
@@ -214,7 +214,7 @@ static int setup_triangle(int t, global const float* positions, global const int
     int emitted = 0, last = STATUS_DEGENERATE;
     for (int k = 0; k + 2 < n; ++k) {
         Prim p;
-        last = make_prim(poly, k, t, material, mat_flags, select, width, height, &p);
+        last = make_prim(poly, k, t, material, mat_flags, select, width, height, sample, &p);
         if (last != STATUS_EMITTED) continue;
         if (dst && emitted < room) dst[emitted] = p;
         ++emitted;
@@ -226,20 +226,22 @@ static int setup_triangle(int t, global const float* positions, global const int
 kernel void setup_count(global const float* positions, global const int* triangles,
                         global const int* tri_material, global const Material* materials,
                         global const float* view_proj, int n_tris, int width, int height, float near,
-                        int select, global int* prim_count, global uchar* status, global Prim* staged)
+                        int select, int sample_x, int sample_y, global int* prim_count, global uchar* status,
+                        global Prim* staged)
 {
     int t = get_global_id(0);
     if (t >= n_tris) return;
     uchar s;
     prim_count[t] = setup_triangle(t, positions, triangles, tri_material, materials, view_proj,
-                                   width, height, near, select, staged + t, 1, &s);
+                                   width, height, near, select, (int2)(sample_x, sample_y), staged + t, 1, &s);
     status[t] = s;
 }
 
 kernel void setup_emit(global const float* positions, global const int* triangles,
                        global const int* tri_material, global const Material* materials,
                        global const float* view_proj, int n_tris, int width, int height, float near,
-                       int select, global const int* prim_offset, global const int* prim_count,
+                       int select, int sample_x, int sample_y, global const int* prim_offset,
+                       global const int* prim_count,
                        global const Prim* staged, int capacity, global Prim* prims)
 {
     int t = get_global_id(0);
@@ -253,5 +255,5 @@ kernel void setup_emit(global const float* positions, global const int* triangle
     }
     uchar s;
     setup_triangle(t, positions, triangles, tri_material, materials, view_proj,
-                   width, height, near, select, prims + offset, room, &s);
+                   width, height, near, select, (int2)(sample_x, sample_y), prims + offset, room, &s);
 }

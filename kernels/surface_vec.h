@@ -15,6 +15,10 @@
 #include "structs.h"
 #include "vec.h"
 
+#ifndef SURFACE_TEXTURES
+#define SURFACE_TEXTURES 1        /* 0: base colour = material factor only, no texture read */
+#endif
+
 typedef struct { floatV x, y, z; } vec3V;
 
 static inline floatV dot3V(vec3V a, vec3V b) { return a.x * b.x + a.y * b.y + a.z * b.z; }
@@ -119,8 +123,12 @@ typedef struct {
     floatV spec_i, spec_p;
 } SurfaceV;
 
-/* The surfaces of prims w (per lane; lanes outside fg: any valid index) at pixels (px, py). */
-static SurfaceV surface_at(const SceneV* sc, intV w, intV fg, intV px, intV py)
+/* The surfaces of prims w (per lane; lanes outside fg: any valid index) at pixels (px, py),
+ * evaluated at the fixed-point point (256 px + 128 + ox, 256 py + 128 + oy) of the prims' frame:
+ * the pixel centre for (0, 0); (-dx, -dy) for prims set up for sub-sample (dx, dy) (the raster
+ * contract §10), whose frame is shifted by it, evaluates them at the pixel centre again, as
+ * multisampling shades once per pixel. */
+static SurfaceV surface_at_offset(const SceneV* sc, intV w, intV fg, intV px, intV py, int ox, int oy)
 {
     global const Prim* prims = sc->prims;
     global const float* positions = sc->positions;
@@ -146,7 +154,7 @@ static SurfaceV surface_at(const SceneV* sc, intV w, intV fg, intV px, intV py)
 
     {
         /* Edge functions at the pixel center (docs/raster_contract.md §5), 64-bit. */
-        longV SX = CONVERT_V(px, longV) * 256 + 128, SY = CONVERT_V(py, longV) * 256 + 128;
+        longV SX = CONVERT_V(px, longV) * 256 + (128 + ox), SY = CONVERT_V(py, longV) * 256 + (128 + oy);
         longV dx0 = X1 - X0, dy0 = Y1 - Y0, dx1 = X2 - X1, dy1 = Y2 - Y1, dx2 = X0 - X2, dy2 = Y0 - Y2;
         longV e0 = dx0 * (SY - Y0) - dy0 * (SX - X0);
         longV e1 = dx1 * (SY - Y1) - dy1 * (SX - X1);
@@ -190,7 +198,11 @@ static SurfaceV surface_at(const SceneV* sc, intV w, intV fg, intV px, intV py)
         floatV cr = GATHER_M(floatV, materials, mat, base_color[0]);
         floatV cg = GATHER_M(floatV, materials, mat, base_color[1]);
         floatV cb = GATHER_M(floatV, materials, mat, base_color[2]);
+#if SURFACE_TEXTURES
         intV tex = select((intV)-1, GATHER_M(intV, materials, mat, texture), fg);
+#else
+        intV tex = (intV)-1;            /* the base colour's texture is not needed (thin G-buffer) */
+#endif
         floatV spec_i = GATHER_M(floatV, materials, mat, spec_intensity);
         floatV spec_p = GATHER_M(floatV, materials, mat, spec_power);
 
@@ -236,6 +248,11 @@ static SurfaceV surface_at(const SceneV* sc, intV w, intV fg, intV px, intV py)
         sf.r = cr; sf.g = cg; sf.b = cb; sf.a = ca; sf.spec_i = spec_i; sf.spec_p = spec_p;
     }
     return sf;
+}
+
+static inline SurfaceV surface_at(const SceneV* sc, intV w, intV fg, intV px, intV py)
+{
+    return surface_at_offset(sc, w, fg, px, py, 0, 0);
 }
 #endif
 

@@ -33,6 +33,7 @@ typedef float floatV;
 #define vloadV(i, p) ((p)[i])
 #define vstoreV(v, i, p) ((p)[i] = (v))
 #define vstore_halfV(v, i, p) vstore_half_rte((v), (i), (p))
+#define vload_halfV(i, p) vload_half((i), (p))
 #else
 typedef CAT(int, VEC) intV;
 typedef CAT(uint, VEC) uintV;
@@ -62,6 +63,7 @@ typedef CAT(float, VEC) floatV;
 #define vloadV CAT(vload, VEC)
 #define vstoreV CAT(vstore, VEC)
 #define vstore_halfV CAT(CAT(vstore_half, VEC), _rte)
+#define vload_halfV CAT(vload_half, VEC)
 #endif
 
 /* CONVERT_V(x, T): vector conversion with round-to-nearest-even, like convert_T. Clang's

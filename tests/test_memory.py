@@ -12,6 +12,7 @@ import gc
 import os
 
 import numpy as np
+import pytest
 
 import clrender
 from clrender import Scene, Texture, memory, scene_gpu, structs
@@ -73,6 +74,22 @@ def test_device_bytes_reported_and_estimated(make_renderer):
     # A larger frame holds proportionally more.
     big = make_renderer(2 * w, 2 * h).render(scene, camera=pixel_exact_camera()).stats
     assert big["device_bytes_by_owner"]["gbuffer"] == 4 * by_owner["gbuffer"]
+
+
+@pytest.mark.parametrize("opts", [dict(pipeline="light_prepass"), dict(pipeline="light_indexed"),
+                                  dict(pipeline="light_prepass", msaa=4, light_buffer_precision="float16"),
+                                  dict(motion_blur=True, bloom=True, edge_aa=True, color_aa="fxaa")])
+def test_variant_and_post_buffers_estimated(make_renderer, opts):
+    """The estimate follows the renderer variants (docs/variants.md) and the post chain: within
+    4 % of every buffer the frame holds (the partial maxima of motion blur are estimated for one
+    pixel per work-item, an upper bound)."""
+    w, h = 96, 64
+    scene = sphere_scene(textured=True)
+    scene.lights = light_set(1, 50)
+    r = make_renderer(w, h, **opts)
+    held = r.render(scene, camera=pixel_exact_camera()).stats["device_bytes"]
+    est = memory.estimate(w, h, r.config, scene)["total"]
+    assert 0.99 * held <= est <= 1.04 * held + 4096, (opts, est, held)
 
 
 def test_resize_and_scene_changes_free_buffers(device):

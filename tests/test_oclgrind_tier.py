@@ -96,6 +96,36 @@ def test_lighting_kernels(device, capfd):
     assert_no_device_diagnostics(capfd)
 
 
+def test_light_accumulation_kernels(device, capfd):
+    """light_culling="quads" (light_view_bounds, light_quad_rects, light_quads_count/fill) and "stencil"
+    (stencil_words_needed, light_stencil, shade.cl with STENCIL) on a 19x13 frame with 8-pixel tiles:
+    40 lights, some reaching the whole view, so the quad lists outgrow their 16 entries per tile and
+    the tile lists their first stencil word (both grown and redone), one holding the eye, one beside
+    it across the near plane; both equal tiled culling, stencil's evaluated pairs are the useful ones."""
+    rng = np.random.default_rng(11)
+    scene = masked_quad_scene()
+    for k in range(40):
+        pos = rng.uniform((-2.5, -2.0, -5.5), (2.5, 2.0, -1.0))
+        if k % 4 == 3:
+            scene.add_spot_light(pos, rng.normal(size=3) + (0, 0, -2), (1.0, 0.8, 0.6), float(rng.uniform(2, 6)),
+                                 10.0, 40.0)
+        else:
+            scene.add_point_light(pos, (0.6, 0.7, 0.8), float(rng.uniform(1.0, 6.0)))
+    scene.add_point_light((0.0, 0.0, 0.0), (0.3, 0.3, 0.3), 2.5)          # holds the eye
+    scene.add_point_light((0.8, 0.0, -0.05), (0.3, 0.3, 0.3), 0.6)        # across the near plane, beside
+    cam = Camera.look_at((0, 0, 0), (0, 0, -1), fov_y_deg=60, near=0.1, far=50)
+    opts = dict(device=device.id, tile_size=8, light_tile_size=8)
+    tiled = clrender.Renderer(19, 13, **opts).render(scene, cam)
+    assert tiled.stats["lights_per_tile_max"] > 32
+    for mode in ("quads", "stencil"):
+        got = clrender.Renderer(19, 13, light_culling=mode, **opts).render(scene, cam)
+        assert got.stats["retries"] >= 1, mode
+        np.testing.assert_allclose(got.color, tiled.color, rtol=0, atol=1e-5 * tiled.color.max())
+        assert got.stats["light_pairs_useful"] == tiled.stats["light_pairs_useful"] > 0
+        assert f"light_{mode}_ms" in got.stats
+    assert got.stats["light_pairs_evaluated"] == got.stats["light_pairs_useful"] < tiled.stats["light_pairs_evaluated"]
+    assert_no_device_diagnostics(capfd)
+
 def test_ssao_kernels(device, capfd):
     """SSAO and its depth-aware blur on a tiny corner (floor, two walls, a box); image sides that
     are not multiples of the work-group exercise the partial groups and runs."""
@@ -360,7 +390,7 @@ def test_bloom_kernels(device, capfd, size, radius):
 
 def test_motion_blur_kernels(device, capfd):
     """A camera pan plus a quad moved with set_transform (the G-buffer's prev_positions) at 40x20
-    (two reach tiles along x, partial work-groups): mb_blur_vectors, mb_tile_reach, mb_dilate_x/y and
+    (two 32-pixel tiles along x, partial tiles and work-groups): mb_velocity, mb_neighbor_max and
     mb_gather against test_motion_blur's NumPy implementation on the same frame without blur."""
     from test_motion_blur import CAM, panned, reference_motion_blur, translation, wall_and_quad
     scene = wall_and_quad()
@@ -373,6 +403,39 @@ def test_motion_blur_kernels(device, capfd):
     quad = np.isin(off.triangle_id, (scene.triangle_count - 2, scene.triangle_count - 1))
     assert quad.sum() > 20 and np.abs(off.velocity[quad][:, 0]).min() > 8 > np.abs(off.velocity[~quad][:, 0]).max()
     np.testing.assert_array_equal(on.velocity, off.velocity)
-    np.testing.assert_allclose(on.color, reference_motion_blur(off.color, off.velocity, 1.0, 6), rtol=1e-5, atol=1e-6)
+    np.testing.assert_allclose(on.color, reference_motion_blur(off.color, off.velocity, off.linear_depth, 1.0, 6), rtol=1e-5, atol=1e-6)
     assert (np.abs(on.color - off.color).max(-1) > 1e-3).mean() > 0.5 and "motion_blur_ms" in on.stats
+    assert_no_device_diagnostics(capfd)
+
+
+# -- renderer variants (docs/variants.md): light pre-pass, multisampled colour, light-indexed -----------
+
+def test_pipeline_variant_kernels(device, capfd):
+    """The light pre-pass (thin G-buffer, light_buffer.cl in float and half with RGB and luminance
+    specular, the raster again, material.cl; msaa=4 with its per-sample setups) and light-indexed
+    (depth-only G-buffer, forward_shade.cl) on a tiny frame with a shadowed spot, a shadowed sun
+    and a masked, textured quad, against the deferred frame: light-indexed bit-identical, the light
+    pre-pass within 1e-5 of the peak (RGB), the others within their own bounds."""
+    scene = masked_quad_scene()
+    scene.add_spot_light((0.3, 0.2, -1.0), (0.0, 0.0, -1.0), (3.0, 1.0, 0.5), 8.0, 20.0, 40.0, shadow=True,
+                         shadow_map_size=24)
+    scene.add_point_light((0.5, 0.2, -2.0), (0.5, 1.5, 2.0), 2.5)
+    scene.set_sun((0.3, -0.2, -1.0), (1.0, 1.0, 1.0), shadow_map_size=16)
+    cam = Camera.look_at((0, 0, 0), (0, 0, -1), fov_y_deg=60, near=0.1, far=50)
+    opts = dict(device=device.id, tile_size=8, light_tile_size=8, sun_cascades=1)
+    deferred = clrender.Renderer(19, 13, **opts).render(scene, cam)
+    indexed = clrender.Renderer(19, 13, pipeline="light_indexed", **opts).render(scene, cam)
+    for name in ("color", "gbuffer", "shadow", "light_count"):
+        np.testing.assert_array_equal(getattr(indexed, name), getattr(deferred, name), err_msg=name)
+    peak = float(deferred.color.max())
+    assert peak > 0.1
+    for extra, rel in ((dict(), 1e-5), (dict(light_buffer_precision="float16"), 1e-3),
+                       (dict(light_buffer_specular="luminance"), 0.3)):
+        prepass = clrender.Renderer(19, 13, pipeline="light_prepass", **extra, **opts).render(scene, cam)
+        np.testing.assert_array_equal(prepass.gbuffer, deferred.gbuffer)
+        assert np.abs(prepass.color - deferred.color).max() <= rel * peak, extra
+    msaa = clrender.Renderer(19, 13, pipeline="light_prepass", msaa=4, **opts).render(scene, cam)
+    np.testing.assert_array_equal(msaa.gbuffer, deferred.gbuffer)
+    changed = np.abs(msaa.color - deferred.color).max(-1) > 1e-5 * peak
+    assert 0 < changed.mean() < 0.5, "only edge pixels change"
     assert_no_device_diagnostics(capfd)

@@ -18,10 +18,16 @@ class GBufferPass(RenderPass):
               "texels", "srgb_lut", "srgb_encode", "tex_infos", "tex_levels", "prev_view_proj")
     outputs = ("gbuffer",)
 
-    def __init__(self, device, config):
+    def __init__(self, device, config, planes=layout.PLANES):
+        """planes: the G-buffer planes this pass writes (layout.PLANES names): all for the deferred
+        pipeline, `THIN_PLANES` for the light pre-pass, `DEPTH_PLANES` for light-indexed. The
+        others are left for a later pass to write as AOVs."""
         super().__init__(device, config)
         self.vec = capabilities.pixel_vector_width(device.cl_device)
-        self.kernel = device.kernel("gbuffer.cl", "gbuffer_resolve", {**layout.kernel_defines(), "VEC": self.vec})
+        self.planes = tuple(planes)
+        defines = {**layout.kernel_defines(), "VEC": self.vec, "GB_WRITE": layout.plane_mask(self.planes),
+                   "SURFACE_TEXTURES": int("albedo_spec" in self.planes)}
+        self.kernel = device.kernel("gbuffer.cl", "gbuffer_resolve", defines)
 
     def allocate(self, width, height):
         self.gbuffer = empty(self.queue, len(layout.PLANES) * width * height, np.uint32)

@@ -15,13 +15,15 @@ class SetupPass(RenderPass):
     inputs = ("positions", "triangles", "tri_material", "materials", "view_proj", "n_tris", "near")
     outputs = ("prims", "prim_total", "prim_capacity", "tri_status")
 
-    def __init__(self, device, config, ortho: bool = False, select: str = "all"):
+    def __init__(self, device, config, ortho: bool = False, select: str = "all", sample: tuple = (0, 0)):
         """ortho: the view is orthographic (a sun shadow cascade); see setup.cl ORTHO.
         select: which triangles become prims (setup.cl SELECT_*): "all", "opaque" (BLEND
         triangles are left to the transparency pass), "blend" (only those), "dither" (all;
-        BLEND prims get the screen-door flag)."""
+        BLEND prims get the screen-door flag). sample: (dx, dy) in 1/256 pixel, the sub-sample
+        the raster covers instead of the pixel centre (docs/raster_contract.md §10)."""
         super().__init__(device, config)
         self.select = np.int32(SELECT[select])
+        self.sample = tuple(np.int32(v) for v in sample)
         defines = {"ORTHO": 1} if ortho else None
         self.count_kernel = device.kernel("setup.cl", "setup_count", defines)
         self.emit_kernel = device.kernel("setup.cl", "setup_emit", defines)
@@ -62,7 +64,7 @@ class SetupPass(RenderPass):
         w, h = res["width"], res["height"]
         common = (res["positions"].data, res["triangles"].data, res["tri_material"].data,
                   res["materials"].data, res["view_proj"].data, np.int32(n), np.int32(w), np.int32(h),
-                  np.float32(res["near"]), self.select)
+                  np.float32(res["near"]), self.select, *self.sample)
         gsize = (round_up(n, 64),)
         self.count_kernel(self.queue, gsize, None, *common, self.prim_count.data, self.status.data,
                           self.staged.data)

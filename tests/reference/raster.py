@@ -205,20 +205,23 @@ def _is_top_left(dX: int, dY: int) -> bool:
     return (dY == 0 and dX > 0) or dY < 0
 
 
-def prim_fragments(X, Y, w, area, width: int, height: int, far) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(rows, cols, depth float32) of the fragments of one prim, far-discarded."""
+def prim_fragments(X, Y, w, area, width: int, height: int, far, sample=(0, 0)) -> tuple[np.ndarray, np.ndarray,
+                                                                                        np.ndarray]:
+    """(rows, cols, depth float32) of the fragments of one prim, far-discarded; `sample` (dx, dy)
+    moves the sample point from the pixel centre 256*p+128 to 256*p+128+d (contract §10)."""
     X = [int(v) for v in X]
     Y = [int(v) for v in Y]
-    # Pixels whose center 256*p+128 lies in [min, max], clamped to the image.
-    x_lo = max(0, -((HALF - min(X)) // SUB))
-    x_hi = min(width - 1, (max(X) - HALF) // SUB)
-    y_lo = max(0, -((HALF - min(Y)) // SUB))
-    y_hi = min(height - 1, (max(Y) - HALF) // SUB)
+    sx, sy = HALF + int(sample[0]), HALF + int(sample[1])
+    # Pixels whose sample 256*p+s lies in [min, max], clamped to the image.
+    x_lo = max(0, -((sx - min(X)) // SUB))
+    x_hi = min(width - 1, (max(X) - sx) // SUB)
+    y_lo = max(0, -((sy - min(Y)) // SUB))
+    y_hi = min(height - 1, (max(Y) - sy) // SUB)
     none = (np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0, np.float32))
     if x_lo > x_hi or y_lo > y_hi:
         return none
-    PX = (SUB * np.arange(x_lo, x_hi + 1, dtype=np.int64) + HALF)[None, :]
-    PY = (SUB * np.arange(y_lo, y_hi + 1, dtype=np.int64) + HALF)[:, None]
+    PX = (SUB * np.arange(x_lo, x_hi + 1, dtype=np.int64) + sx)[None, :]
+    PY = (SUB * np.arange(y_lo, y_hi + 1, dtype=np.int64) + sy)[:, None]
     E = []
     covered = np.ones((len(PY), PX.shape[1]), bool)
     for k in range(3):
@@ -244,10 +247,12 @@ def prim_fragments(X, Y, w, area, width: int, height: int, far) -> tuple[np.ndar
     return rows[keep] + y_lo, cols[keep] + x_lo, depth[keep]
 
 
-def iter_fragments(prims: Prims, width: int, height: int, far) -> Iterator[tuple[int, int, np.ndarray, np.ndarray, np.ndarray]]:
+def iter_fragments(prims: Prims, width: int, height: int, far,
+                   sample=(0, 0)) -> Iterator[tuple[int, int, np.ndarray, np.ndarray, np.ndarray]]:
     """(triangle id, prim index, rows, cols, depth) for every prim in setup order."""
     for n in range(len(prims)):
-        rows, cols, depth = prim_fragments(prims.X[n], prims.Y[n], prims.w[n], prims.area[n], width, height, far)
+        rows, cols, depth = prim_fragments(prims.X[n], prims.Y[n], prims.w[n], prims.area[n], width, height, far,
+                                           sample)
         if len(rows):
             yield int(prims.tri[n]), n, rows, cols, depth
 
@@ -255,15 +260,16 @@ def iter_fragments(prims: Prims, width: int, height: int, far) -> Iterator[tuple
 # --------------------------------------------------------------------------------------
 # Public entry points
 # --------------------------------------------------------------------------------------
-def rasterize(scene, camera, width: int, height: int) -> tuple[np.ndarray, np.ndarray, dict]:
-    """(triangle_id int32 (H, W) with -1 background, depth float32 (H, W) with +inf, stats)."""
+def rasterize(scene, camera, width: int, height: int, sample=(0, 0)) -> tuple[np.ndarray, np.ndarray, dict]:
+    """(triangle_id int32 (H, W) with -1 background, depth float32 (H, W) with +inf, stats);
+    `sample` (dx, dy) in 1/256 pixel: coverage and depth at that sub-sample (contract §10)."""
     W, H = int(width), int(height)
     prims, stats = setup(scene, camera, W, H)
     ids = np.full((H, W), -1, np.int32)
     depth = np.full((H, W), np.inf, np.float32)
     # Prims come in ascending (triangle id, prim index) order, so a strict "<" keeps the
     # lower id (then the lower prim index) on equal depth.
-    for tri, _, rows, cols, dep in iter_fragments(prims, W, H, F32(camera.far)):
+    for tri, _, rows, cols, dep in iter_fragments(prims, W, H, F32(camera.far), sample):
         win = dep < depth[rows, cols]
         depth[rows[win], cols[win]] = dep[win]
         ids[rows[win], cols[win]] = tri

@@ -1,0 +1,98 @@
+"""Light quads pass (kernels/light_quads.cl): per-tile light lists from each light's screen-space
+bounding quad (report V.1's geometry-shader sprites), no tile depth bounds. It publishes exactly
+LightCullPass's resources, so ShadePass (and the forward passes over transparent fragments)
+read them unchanged; the culling spheres come from light_cull.cl's light_view_bounds."""
+from __future__ import annotations
+
+import numpy as np
+
+from .. import capabilities
+from .. import gbuffer as layout
+from .base import Overflow, RenderPass, empty, round_up, scan_for, zeros
+
+
+class LightQuadsPass(RenderPass):
+    name = "light_quads"
+    inputs = ("lights", "n_lights", "view_matrix", "tan_x", "tan_y", "near", "far", "camera")
+    outputs = ("tile_light_counts", "tile_light_offsets", "tile_lights", "light_list_capacity", "light_tiles_x")
+
+    def __init__(self, device, config):
+        super().__init__(device, config)
+        self.tile = config.light_tile_size
+        self.vec = capabilities.pixel_vector_width(device.cl_device)
+        # light_view_bounds is built as LightCullPass builds it: the same culling spheres.
+        cull_defines = {**layout.kernel_defines(), "LTILE": self.tile, "VEC": self.vec,
+                        "DEPTH_MASK": int(config.light_depth_mask)}
+        self.bounds_kernel = device.kernel("light_cull.cl", "light_view_bounds", cull_defines)
+        defines = {"LTILE": self.tile, "VEC": self.vec}
+        self.rect_kernel = device.kernel("light_quads.cl", "light_quad_rects", defines)
+        self.count_kernel = device.kernel("light_quads.cl", "light_quads_count", defines)
+        self.fill_kernel = device.kernel("light_quads.cl", "light_quads_fill", defines)
+        self.scan = scan_for(device)
+        self.total = zeros(self.queue, 1, np.int32)
+        self.n_padded = 0
+        self.frame_padded = 0              # the last frame's light count padded to VEC (rect planes' stride)
+        self.list_capacity = 0
+
+    def allocate(self, width, height):
+        self.tiles_x, self.tiles_y = -(-width // self.tile), -(-height // self.tile)
+        n = self.tiles_x * self.tiles_y
+        self.counts = zeros(self.queue, n, np.int32)
+        self.offsets = zeros(self.queue, n, np.int32)
+        self._allocate_list(16 * n)        # a new resolution drops a list grown for the old one
+
+    def _allocate_list(self, capacity):
+        self.list_capacity = int(capacity)
+        self.lights_list = zeros(self.queue, self.list_capacity, np.int32)
+
+    def prepare_scene(self, scene_res):
+        needed = round_up(max(scene_res["n_lights"], 1), self.vec)
+        if needed > self.n_padded:
+            self.n_padded = needed
+            self.spheres = [empty(self.queue, needed, np.float32) for _ in range(4)]
+            self.quad_rect = empty(self.queue, 4 * needed, np.float32)     # pixel x0, y0, x1, y1 planes
+            self.quad_tiles = empty(self.queue, 4 * needed, np.int32)      # tile x0, y0, x1, y1 planes
+
+    def publish(self, res):
+        res.buffers.update(tile_light_counts=self.counts, tile_light_offsets=self.offsets,
+                           tile_lights=self.lights_list)
+        res.values.update(light_list_capacity=self.list_capacity, light_tiles_x=self.tiles_x)
+
+    def run(self, res):
+        w, h = res["width"], res["height"]
+        n_lights = res["n_lights"]
+        n_padded = round_up(max(n_lights, 1), self.vec)
+        self.frame_padded = n_padded
+        sx, sy, sz, sr = (s.data for s in self.spheres)
+        lsize = (round_up(n_padded, 64),)
+        self.bounds_kernel(self.queue, lsize, None, res["lights"].data, np.int32(n_lights), np.int32(n_padded),
+                           res["view_matrix"].data, sx, sy, sz, sr)
+        eye_distance = float(np.linalg.norm(np.asarray(res["camera"].eye, np.float64)))
+        self.rect_kernel(self.queue, lsize, None, sx, sy, sz, sr, np.int32(n_padded), np.int32(w), np.int32(h),
+                         np.float32(res["tan_x"]), np.float32(res["tan_y"]), np.float32(res["near"]),
+                         np.float32(res["far"]), np.float32(eye_distance), np.int32(self.tiles_x),
+                         np.int32(self.tiles_y), self.quad_rect.data, self.quad_tiles.data)
+        tiles = (self.quad_tiles.data, np.int32(n_padded), np.int32(self.tiles_x), np.int32(self.tiles_y))
+        gsize = (round_up(self.tiles_x * self.tiles_y, 64),)
+        self.count_kernel(self.queue, gsize, None, *tiles, self.counts.data)
+        self.scan(self.counts, self.offsets, self.total, queue=self.queue)
+        self.fill_kernel(self.queue, gsize, None, *tiles, self.offsets.data, np.int32(self.list_capacity),
+                         self.lights_list.data)
+
+    def overflows(self):
+        return [Overflow("tile_lights", self.total, self.list_capacity)]
+
+    def grow(self, name, needed):
+        self._allocate_list(round_up(needed + needed // 4, 4096))
+
+    def quad_rects(self, n_lights: int) -> np.ndarray:
+        """(n_lights, 4) float32 pixel rectangles (x0, y0, x1, y1) of the last frame; x0 > x1: empty."""
+        n = self.frame_padded
+        planes = self.quad_rect.get(queue=self.queue)[: 4 * n].reshape(4, n)
+        return np.ascontiguousarray(planes[:, :n_lights].T)
+
+    def tile_stats(self) -> dict:
+        counts = self.counts.get(queue=self.queue)[: self.tiles_x * self.tiles_y]
+        return {"lights_per_tile_avg": float(counts.mean()) if counts.size else 0.0,
+                "lights_per_tile_max": int(counts.max()) if counts.size else 0,
+                "light_list_entries": int(counts.sum())}

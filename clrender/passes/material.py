@@ -1,0 +1,60 @@
+"""Material pass (kernels/material.cl): pass 3 of the light pre-pass pipeline (docs/variants.md).
+The second geometry pass's visible surfaces (base colour × texture, specular intensity, from the
+materials) times the light buffer: color = albedo·(ambient·ao + D) + s·S. With `msaa=N` the
+raster ran at N sub-samples (setup.cl's sample offsets) and each sample is combined with the
+pixel's light buffer, then averaged: the report's anti-aliasing on the colour. Writes the
+albedo/specular plane of the G-buffer (an AOV) from the pixel centre's surface."""
+from __future__ import annotations
+
+import numpy as np
+
+from .. import capabilities
+from .. import gbuffer as layout
+from .base import RenderPass, empty, round_up
+from .light_buffer import PRECISIONS
+from .second_geometry import sample_offsets
+
+
+class MaterialPass(RenderPass):
+    name = "material"
+    outputs = ("color",)
+
+    def __init__(self, device, config, samples: int = 1):
+        """samples: how many sub-sample visibility buffers run() combines; sample s reads
+        res[f"vis_prim_{s}"] and res[f"prims_{s}"] (s = 0 only: "vis_prim", "prims")."""
+        super().__init__(device, config)
+        self.samples = samples
+        self.vec = capabilities.pixel_vector_width(device.cl_device)
+        self.inputs = ("light_buffer", "gbuffer", "positions", "normals", "uvs", "triangles", "materials", "texels",
+                       "srgb_lut", "srgb_encode", "tex_infos", "tex_levels", "ambient") + (
+            ("ao",) if config.ssao else ()) + (
+            ("vis_prim", "prims") if samples == 1 else
+            tuple(n for s in range(samples) for n in (f"vis_prim_{s}", f"prims_{s}")) + ("vis_prim", "prims"))
+        self.kernel = device.kernel("material.cl", "material", {
+            **layout.kernel_defines(), "VEC": self.vec, "SSAO": int(config.ssao),
+            "SPECULAR_RGB": int(config.light_buffer_specular == "rgb"),
+            "LB_HALF": PRECISIONS[config.light_buffer_precision][1],
+            "GB_WRITE": layout.plane_mask(("albedo_spec",))})
+
+    def allocate(self, width, height):
+        self.color = empty(self.queue, 3 * width * height, np.float32)
+        self.spread = empty(self.queue, 3 * width * height if self.samples > 2 else 1, np.float32)
+        self.no_ao = empty(self.queue, 1, np.float32)
+
+    def publish(self, res):
+        res.buffers["color"] = self.color
+
+    def run(self, res):
+        w, h = res["width"], res["height"]
+        gsize = (round_up(-(-w * h // self.vec), 64),)
+        ao = res["ao"] if self.config.ssao else self.no_ao
+        for s, (dx, dy) in enumerate(sample_offsets(self.samples)):
+            vis, prims = (("vis_prim", "prims") if self.samples == 1 else (f"vis_prim_{s}", f"prims_{s}"))
+            write_aov = 0 if s else (1 if self.samples == 1 else 2)
+            self.kernel(self.queue, gsize, (64,), res[vis].data, res[prims].data, np.int32(w), np.int32(h),
+                        res["positions"].data, res["normals"].data, res["uvs"].data, res["triangles"].data,
+                        res["materials"].data, res["texels"].data, res["srgb_lut"].data, res["srgb_encode"].data,
+                        res["tex_infos"].data, res["tex_levels"].data, res["light_buffer"].data,
+                        np.float32(res["ambient"]), ao.data, np.int32(s), np.int32(self.samples), np.int32(dx), np.int32(dy),
+                        np.int32(write_aov), res["vis_prim"].data, res["prims"].data, self.color.data,
+                        self.spread.data, res["gbuffer"].data)
