@@ -8,10 +8,44 @@ from .. import gbuffer as layout
 from .base import Overflow, RenderPass, empty, round_up, scan_for, zeros
 
 
-class LightCullPass(RenderPass):
+class TileLightLists(RenderPass):
+    """Per-tile light index lists (counts, offsets, entries) and what every pass that makes them
+    shares (LightCullPass, light_quads.LightQuadsPass): allocation per resolution, the published
+    resources ShadePass reads, growth on overflow, the per-tile statistics."""
+    outputs = ("tile_light_counts", "tile_light_offsets", "tile_lights", "light_list_capacity", "light_tiles_x")
+
+    def _allocate_lists(self, width, height):
+        self.tiles_x, self.tiles_y = -(-width // self.tile), -(-height // self.tile)
+        n = self.tiles_x * self.tiles_y
+        self.counts = zeros(self.queue, n, np.int32)
+        self.offsets = zeros(self.queue, n, np.int32)
+        self._allocate_list(16 * n)        # a new resolution drops a list grown for the old one
+
+    def _allocate_list(self, capacity):
+        self.list_capacity = int(capacity)
+        self.lights_list = zeros(self.queue, self.list_capacity, np.int32)
+
+    def publish(self, res):
+        res.buffers.update(tile_light_counts=self.counts, tile_light_offsets=self.offsets,
+                           tile_lights=self.lights_list)
+        res.values.update(light_list_capacity=self.list_capacity, light_tiles_x=self.tiles_x)
+
+    def overflows(self):
+        return [Overflow("tile_lights", self.total, self.list_capacity)]
+
+    def grow(self, name, needed):
+        self._allocate_list(round_up(needed + needed // 4, 4096))
+
+    def tile_stats(self) -> dict:
+        counts = self.counts.get(queue=self.queue)[: self.tiles_x * self.tiles_y]
+        return {"lights_per_tile_avg": float(counts.mean()) if counts.size else 0.0,
+                "lights_per_tile_max": int(counts.max()) if counts.size else 0,
+                "light_list_entries": int(counts.sum())}
+
+
+class LightCullPass(TileLightLists):
     name = "light_cull"
     inputs = ("lights", "n_lights", "gbuffer", "view_matrix", "tan_x", "tan_y")
-    outputs = ("tile_light_counts", "tile_light_offsets", "tile_lights", "light_list_capacity", "light_tiles_x")
 
     def __init__(self, device, config):
         super().__init__(device, config)
@@ -30,27 +64,14 @@ class LightCullPass(RenderPass):
         self.list_capacity = 0
 
     def allocate(self, width, height):
-        self.tiles_x, self.tiles_y = -(-width // self.tile), -(-height // self.tile)
-        n = self.tiles_x * self.tiles_y
-        self.tile_depth = empty(self.queue, 4 * n, np.float32)
-        self.counts = zeros(self.queue, n, np.int32)
-        self.offsets = zeros(self.queue, n, np.int32)
-        self._allocate_list(16 * n)        # a new resolution drops a list grown for the old one
-
-    def _allocate_list(self, capacity):
-        self.list_capacity = int(capacity)
-        self.lights_list = zeros(self.queue, self.list_capacity, np.int32)
+        self._allocate_lists(width, height)
+        self.tile_depth = empty(self.queue, 4 * self.tiles_x * self.tiles_y, np.float32)
 
     def prepare_scene(self, scene_res):
         needed = round_up(max(scene_res["n_lights"], 1), self.vec)
         if needed > self.n_padded:
             self.n_padded = needed
             self.spheres = [empty(self.queue, needed, np.float32) for _ in range(4)]
-
-    def publish(self, res):
-        res.buffers.update(tile_light_counts=self.counts, tile_light_offsets=self.offsets,
-                           tile_lights=self.lights_list)
-        res.values.update(light_list_capacity=self.list_capacity, light_tiles_x=self.tiles_x)
 
     def run(self, res):
         w, h = res["width"], res["height"]
@@ -72,15 +93,3 @@ class LightCullPass(RenderPass):
         self.scan(self.counts, self.offsets, self.total, queue=self.queue)
         self.fill_kernel(self.queue, gsize, None, *cull, self.offsets.data, np.int32(self.list_capacity),
                          self.lights_list.data)
-
-    def overflows(self):
-        return [Overflow("tile_lights", self.total, self.list_capacity)]
-
-    def grow(self, name, needed):
-        self._allocate_list(round_up(needed + needed // 4, 4096))
-
-    def tile_stats(self) -> dict:
-        counts = self.counts.get(queue=self.queue)[: self.tiles_x * self.tiles_y]
-        return {"lights_per_tile_avg": float(counts.mean()) if counts.size else 0.0,
-                "lights_per_tile_max": int(counts.max()) if counts.size else 0,
-                "light_list_entries": int(counts.sum())}

@@ -8,13 +8,13 @@ import numpy as np
 
 from .. import capabilities
 from .. import gbuffer as layout
-from .base import Overflow, RenderPass, empty, round_up, scan_for, zeros
+from .base import empty, round_up, scan_for, zeros
+from .light_cull import TileLightLists
 
 
-class LightQuadsPass(RenderPass):
+class LightQuadsPass(TileLightLists):
     name = "light_quads"
     inputs = ("lights", "n_lights", "view_matrix", "tan_x", "tan_y", "near", "far", "camera")
-    outputs = ("tile_light_counts", "tile_light_offsets", "tile_lights", "light_list_capacity", "light_tiles_x")
 
     def __init__(self, device, config):
         super().__init__(device, config)
@@ -35,15 +35,7 @@ class LightQuadsPass(RenderPass):
         self.list_capacity = 0
 
     def allocate(self, width, height):
-        self.tiles_x, self.tiles_y = -(-width // self.tile), -(-height // self.tile)
-        n = self.tiles_x * self.tiles_y
-        self.counts = zeros(self.queue, n, np.int32)
-        self.offsets = zeros(self.queue, n, np.int32)
-        self._allocate_list(16 * n)        # a new resolution drops a list grown for the old one
-
-    def _allocate_list(self, capacity):
-        self.list_capacity = int(capacity)
-        self.lights_list = zeros(self.queue, self.list_capacity, np.int32)
+        self._allocate_lists(width, height)
 
     def prepare_scene(self, scene_res):
         needed = round_up(max(scene_res["n_lights"], 1), self.vec)
@@ -52,11 +44,6 @@ class LightQuadsPass(RenderPass):
             self.spheres = [empty(self.queue, needed, np.float32) for _ in range(4)]
             self.quad_rect = empty(self.queue, 4 * needed, np.float32)     # pixel x0, y0, x1, y1 planes
             self.quad_tiles = empty(self.queue, 4 * needed, np.int32)      # tile x0, y0, x1, y1 planes
-
-    def publish(self, res):
-        res.buffers.update(tile_light_counts=self.counts, tile_light_offsets=self.offsets,
-                           tile_lights=self.lights_list)
-        res.values.update(light_list_capacity=self.list_capacity, light_tiles_x=self.tiles_x)
 
     def run(self, res):
         w, h = res["width"], res["height"]
@@ -79,20 +66,8 @@ class LightQuadsPass(RenderPass):
         self.fill_kernel(self.queue, gsize, None, *tiles, self.offsets.data, np.int32(self.list_capacity),
                          self.lights_list.data)
 
-    def overflows(self):
-        return [Overflow("tile_lights", self.total, self.list_capacity)]
-
-    def grow(self, name, needed):
-        self._allocate_list(round_up(needed + needed // 4, 4096))
-
     def quad_rects(self, n_lights: int) -> np.ndarray:
         """(n_lights, 4) float32 pixel rectangles (x0, y0, x1, y1) of the last frame; x0 > x1: empty."""
         n = self.frame_padded
         planes = self.quad_rect.get(queue=self.queue)[: 4 * n].reshape(4, n)
         return np.ascontiguousarray(planes[:, :n_lights].T)
-
-    def tile_stats(self) -> dict:
-        counts = self.counts.get(queue=self.queue)[: self.tiles_x * self.tiles_y]
-        return {"lights_per_tile_avg": float(counts.mean()) if counts.size else 0.0,
-                "lights_per_tile_max": int(counts.max()) if counts.size else 0,
-                "light_list_entries": int(counts.sum())}
