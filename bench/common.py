@@ -18,6 +18,11 @@ SPONZA_CAMERA = dict(eye=(-16.64, 5.48, -0.79), target=(13.97, 6.55, -0.79), up=
                      fov_y_deg=60.0, near=0.1, far=100.0)
 
 
+HELMET = SHARED_SCENES / "khronos-DamagedHelmet" / "DamagedHelmet.gltf"
+# Upright (+y), facing +z: the view the material tests use, filling the frame.
+HELMET_CAMERA = dict(eye=(1.2, 0.5, 2.9), target=(0.0, 0.0, 0.0), up=(0, 1, 0), fov_y_deg=40.0, near=0.05, far=20.0)
+
+
 def require_scene(path: Path) -> Path:
     if not path.is_file():
         raise SystemExit(f"benchmark scene not found: {path} (the shared scenes live in ../shared/scenes "

@@ -1,6 +1,7 @@
 """G-buffer benchmark: Crytek Sponza at 1280×720 from the fixed atrium camera.
 
     python -m bench.gbuffer [--repeats 10] [--warmup 3] [--device NAME] [--tile-size 8 16 32] [--no-gl]
+                            [--no-materials]
 
 Prints the median milliseconds per pass from OpenCL profiling events (setup = transform,
 clipping and triangle setup; binning; raster = fine rasterization into the visibility
@@ -8,6 +9,11 @@ buffer; gbuffer = the G-buffer resolve), triangles per second, and — in the sa
 same G-buffer drawn by OpenGL (moderngl on Mesa llvmpipe through EGL, bench/gl_peer.py):
 the clrender/OpenGL time ratio and how closely the two G-buffers agree. Writes a JSON
 record and a side-by-side PNG under bench/results/.
+
+Materials (docs/materials.md): the G-buffer resolve of DamagedHelmet and Sponza at the same size
+with their glTF textures as loaded, without normal and metallic-roughness maps, and with the base
+colour texture alone (what the resolve sampled before per-pixel materials): the target is all
+textures at most 1.5× the base colour alone.
 """
 from __future__ import annotations
 
@@ -18,7 +24,8 @@ import time
 
 import numpy as np
 
-from bench.common import SPONZA, SPONZA_CAMERA, RESULTS, medians, require_scene, time_renders, write_record
+from bench.common import (HELMET, HELMET_CAMERA, RESULTS, SPONZA, SPONZA_CAMERA, medians, require_scene,
+                          time_renders, write_record)
 
 PASSES = ("setup", "binning", "raster", "gbuffer")
 
@@ -32,6 +39,7 @@ def main(argv=None) -> int:
     ap.add_argument("--width", type=int, default=1280)
     ap.add_argument("--height", type=int, default=720)
     ap.add_argument("--no-gl", action="store_true", help="skip the OpenGL peer")
+    ap.add_argument("--no-materials", action="store_true", help="skip the per-pixel material measurements")
     args = ap.parse_args(argv)
 
     import clrender
@@ -69,9 +77,47 @@ def main(argv=None) -> int:
     frame = frames[int(best_tile)]
     if not args.no_gl:
         record["opengl"] = run_gl_peer(scene, camera, args, frame, clr_ms)
+    if not args.no_materials:
+        record["materials"] = {"DamagedHelmet": run_materials(clrender.load_scene(require_scene(HELMET)),
+                                                              clrender.Camera.look_at(**HELMET_CAMERA), args),
+                               "Sponza": run_materials(scene, camera, args)}
     path = write_record("gbuffer", record)
     print(f"\nrecord: {path}")
     return 0
+
+
+MATERIAL_VARIANTS = {
+    "all textures": {},
+    "no normal/MR maps": dict(normal_texture=-1, metallic_roughness_texture=-1),
+    "base colour only": dict(normal_texture=-1, metallic_roughness_texture=-1, occlusion_texture=-1,
+                             emissive_texture=-1, emissive=(0.0, 0.0, 0.0)),
+}
+
+
+def run_materials(scene, camera, args) -> dict:
+    """G-buffer resolve ms (and the frame's wall time) of `scene` under MATERIAL_VARIANTS."""
+    import dataclasses
+
+    import clrender
+    renderer = clrender.Renderer(args.width, args.height, device=args.device)
+    loaded = scene.materials
+    out = {}
+    print(f"\nmaterials, {scene.source.rsplit('/', 1)[-1]} at {args.width}×{args.height}, median of {args.repeats} (ms):")
+    try:
+        for name, change in MATERIAL_VARIANTS.items():
+            scene.materials = [dataclasses.replace(m, **change) for m in loaded]
+            stats, walls, _ = time_renders(renderer, scene, camera, args.warmup, args.repeats)
+            med = medians(stats)
+            out[name] = {"gbuffer_ms": med["gbuffer_ms"], "shade_ms": med["shade_ms"],
+                         "frame_ms": med["total_ms"], "wall_ms": statistics.median(walls)}
+            print(f"  {name:<18} resolve {med['gbuffer_ms']:7.2f}   shade {med['shade_ms']:7.2f}   "
+                  f"passes {med['total_ms']:7.1f}   render() wall {statistics.median(walls):7.1f}")
+    finally:
+        scene.materials = loaded
+    ratio = out["all textures"]["gbuffer_ms"] / out["base colour only"]["gbuffer_ms"]
+    out["resolve_ratio_all_vs_base"] = ratio
+    print(f"  resolve with every texture / base colour only: {ratio:.2f}× (target <= 1.5×)")
+    return out
 
 
 def run_gl_peer(scene, camera, args, frame, clr_ms) -> dict:

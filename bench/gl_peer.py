@@ -6,7 +6,8 @@ normally Mesa llvmpipe, and produces the G-buffer clrender's ``Frame`` carries:
 
 * ``depth``        (H, W)    float32  positive view-space depth, +inf on background
 * ``normal``       (H, W, 3) float32  world-space normal, normalized, flipped on back faces
-* ``albedo``       (H, W, 3) float32  linear base color (factor x texture)
+* ``albedo``       (H, W, 3) float32  linear diffuse albedo: factor x texture x (1 - metallic factor)
+                   (docs/materials.md; metallic-roughness textures are not sampled)
 * ``triangle_id``  (H, W)    int32    original scene triangle index, -1 on background
 
 Row 0 is the top of the image (GL reads bottom-up; ``render`` flips).
@@ -157,6 +158,13 @@ class _Unused:
     value = None
 
 
+def diffuse_factor(m) -> tuple:
+    """The material's colour factor with clrender's metallic rule (diffuse = base·(1 − metallic)),
+    alpha kept; per-pixel metallic-roughness textures are beyond this peer."""
+    k = 1.0 if m.metallic is None or m.unlit else 1.0 - m.metallic
+    return tuple(float(c) * k for c in m.base_color[:3]) + (float(m.base_color[3]),)
+
+
 class GLPeer:
     """Renders clrender's G-buffer with OpenGL (moderngl, headless EGL, llvmpipe)."""
 
@@ -237,7 +245,7 @@ class GLPeer:
                 groups.append(dict(
                     start=int(s), count=int(e - s), direct=direct, id0=int(ids_g[0]),
                     cull=not m.double_sided, texture=tex,
-                    base_color=tuple(float(c) for c in m.base_color),
+                    base_color=diffuse_factor(m),
                     mask=m.alpha_mode == "MASK", cutoff=float(m.alpha_cutoff)))
             self._groups = groups
         self.upload_s = time.perf_counter() - t0

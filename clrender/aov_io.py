@@ -121,9 +121,9 @@ def preview(name: str, data: np.ndarray, background: np.ndarray) -> np.ndarray:
         out = _u8(data * 0.5 + 0.5)
         out[background] = 0
         return out
-    if name == "albedo":
+    if name in ("albedo", "emissive"):     # linear [0, 1] colours (emissive before its strength)
         return linear_to_srgb8(data)
-    if name in ("specular_intensity", "ao", "transmittance"):   # [0, 1] as grey; white = unoccluded / clear
+    if name in ("specular_intensity", "ao", "transmittance", "occlusion"):   # [0, 1] as grey; white = unoccluded / clear
         return _u8(data)
     if name == "specular_power":
         return _u8(np.log2(np.maximum(data, 1.0)) / SPEC_POWER_LOG2_MAX)

@@ -38,6 +38,10 @@ TOLERANCES = {
     "fragment_count": ("exact", 0.0),  # the same fixed-point coverage and depth as the raster
     "transmittance": ("abs", 1e-5),    # products of the same alphas (texture sampling ulps)
     "edges": ("exact", 0.0),           # the edge mask: thresholds on the same G-buffer words
+    "specular_intensity": ("abs", 1 / 255 + 1e-6),   # 8-bit unorm: one code
+    "specular_power": ("rel", 0.031),  # log2 in 8 bits: one code is a factor 2^(11/255)
+    "emissive": ("abs", 1e-2),         # 8-bit sRGB: one code near white
+    "occlusion": ("abs", 1 / 255 + 1e-6),
 }
 
 # With the LDR post effects a last-ulp difference in the HDR colour can flip FXAA's contrast test
@@ -130,13 +134,17 @@ def compare(aov: str, ref: np.ndarray, got: np.ndarray, tolerances: Optional[dic
 
 
 def default_cases(width: int, height: int) -> list[tuple[str, Scene, Camera]]:
-    """The fixed portability cases: the bundled demo, a random soup, a dense tile, many lights."""
+    """The fixed portability cases: the bundled demo (also through an orthographic camera: the
+    ORTHO kernel variants), a random soup, a dense tile, many lights."""
     from .loaders import load_scene
     cases = []
     demo = REPO_SCENES / "demo.toml"
     if demo.is_file():
         scene = load_scene(demo)
         cases.append(("demo", scene, scene.camera))
+        c = scene.camera       # the orthographic view as tall as the perspective one at its target
+        half = float(np.linalg.norm(np.subtract(c.target, c.eye))) * np.tan(np.radians(c.fov_y_deg) / 2)
+        cases.append(("ortho", scene, Camera.orthographic(c.eye, c.target, c.up, half, half, c.near, c.far)))
     rng = np.random.default_rng(1234)
     n = 300
     centers = rng.uniform([-2, -1.5, -8], [2, 1.5, -0.05], (n, 1, 3))
@@ -144,7 +152,7 @@ def default_cases(width: int, height: int) -> list[tuple[str, Scene, Camera]]:
                              np.arange(3 * n).reshape(-1, 3))
     soup.add_random_lights(64, seed=5, radius=(0.5, 2.0))
     soup.add_spot_light((0, 3, -2), (0, -1, -0.6), (4, 4, 4), 10, 20, 40, shadow=True, shadow_map_size=256)
-    soup.set_sun((0.3, -1, -0.4), (0.8, 0.8, 0.8), shadow_map_size=512)     # shadow maps: spot and sun
+    soup.set_sun((0.3, -1, -0.4), (0.8, 0.8, 0.8), shadow_map_size=256)     # shadow maps: spot and sun
     cases.append(("soup", soup, Camera.look_at((0, 0, 0), (0, 0, -1), near=0.1, far=50)))
     m = 3000                                 # every triangle over the same few pixels: one hot tile
     tri = np.array([[-0.05, -0.05, 0], [0.05, -0.05, 0], [0, 0.05, 0]], np.float32)
@@ -159,7 +167,40 @@ def default_cases(width: int, height: int) -> list[tuple[str, Scene, Camera]]:
     lights.add_light_particles(200, seed=3, radius=(0.5, 1.0))
     cases.append(("lights", lights, Camera.look_at((0, 1.5, 1), (0, -1, -5), near=0.1, far=50)))
     cases.append(("glass", _transparent_case(rng), Camera.look_at((0, 0, 0), (0, 0, -1), near=0.1, far=50)))
+    cases.append(("materials", _materials_case(rng), Camera.look_at((0, 0.5, 1.5), (0, 0, -3), near=0.1, far=50)))
     return cases
+
+
+def _materials_case(rng) -> Scene:
+    """A bumpy, tilted sheet of glTF-style materials (docs/materials.md): noise metallic-roughness,
+    normal, occlusion and emissive textures through texture transforms and a second uv set,
+    vertex colours, generated tangents, an unlit strip, point lights and a shadowed spot."""
+    from .scene import Material, Texture, UVTransform
+    n = 12
+    u, v = np.meshgrid(np.linspace(0, 1, n + 1), np.linspace(0, 1, n + 1))
+    positions = np.stack([u * 6 - 3, v * 4 - 2 + 0.3 * np.sin(7 * u), -3 - 2 * v], -1).reshape(-1, 3)
+    idx = np.arange((n + 1) ** 2).reshape(n + 1, n + 1)
+    quads = np.stack([idx[:-1, :-1], idx[:-1, 1:], idx[1:, 1:], idx[1:, :-1]], -1).reshape(-1, 4)
+    faces = np.concatenate([quads[:, [0, 1, 2]], quads[:, [0, 2, 3]]])
+    uv0 = np.stack([u, v], -1).reshape(-1, 2)
+    scene = Scene.from_arrays(positions.astype(np.float32), faces, uvs=uv0.astype(np.float32))
+
+    def noise(srgb):
+        return Texture("noise", rng.integers(0, 256, (16, 16, 4), dtype=np.uint8), srgb=srgb)
+
+    scene.textures = [noise(True), noise(False), noise(False), noise(False), noise(True)]
+    moved = UVTransform(texcoord=1, offset=(0.1, 0.2), rotation=0.4, scale=(1.5, 0.75))
+    scene.extra_uvs = (uv0[None] * (2.0, 1.0)).astype(np.float32)
+    scene.colors = rng.uniform(0.3, 1.0, (len(positions), 4)).astype(np.float32)
+    scene.materials = [Material.from_metallic_roughness(
+        "pbr", (0.9, 0.8, 0.6, 1.0), 0.7, 0.8, base_color_texture=0, metallic_roughness_texture=1,
+        normal_texture=2, normal_scale=0.8, occlusion_texture=3, occlusion_strength=0.7, emissive=(0.3, 0.2, 0.1),
+        emissive_texture=4, emissive_strength=2.0, metallic_roughness_uv=moved, normal_uv=UVTransform(scale=(2, 2)),
+        emissive_uv=moved), Material("unlit", (0.2, 0.7, 0.4, 1.0), unlit=True)]
+    scene.triangle_material = (np.arange(len(faces)) % n == 0).astype(np.int32)
+    scene.add_random_lights(24, seed=4, radius=(1.0, 3.0), intensity=2.0)
+    scene.add_spot_light((0, 3, 0), (0, -1, -1), (5, 5, 5), 12, 20, 40, shadow=True, shadow_map_size=128)
+    return scene
 
 
 def _transparent_case(rng) -> Scene:
@@ -181,8 +222,8 @@ def _transparent_case(rng) -> Scene:
     return scene
 
 
-AOVS = ("triangle_id", "depth", "normal", "albedo", "velocity", "light_count", "ao", "shadow", "fragment_count",
-        "transmittance", "edges", "color", "image")
+AOVS = ("triangle_id", "depth", "normal", "albedo", "specular_intensity", "specular_power", "emissive", "occlusion",
+        "velocity", "light_count", "ao", "shadow", "fragment_count", "transmittance", "edges", "color", "image")
 
 
 def run_check(devices="all", scenes: Sequence[str | Path] = (), width: int = 96,

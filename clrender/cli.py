@@ -11,7 +11,8 @@
                     --bloom --bloom-threshold T --bloom-strength S --bloom-radius PX
                     --motion-blur --shutter F --motion-blur-samples N --previous-eye x,y,z --previous-target x,y,z
                     --hatching --hatching-scale S --hatching-saturation S
-                    --aov depth,normal,... --camera-eye x,y,z --camera-target x,y,z --fov DEG --quiet]
+                    --aov depth,normal,... --camera-eye x,y,z --camera-target x,y,z --fov DEG
+                    --ortho HALF_HEIGHT --quiet]
     clrender devices [--json]
     clrender info SCENE [--json]
     clrender check [--device NAME|all] [--scene S] [--json report.json]
@@ -105,6 +106,16 @@ def _fov(text: str) -> float:
         value = float("nan")
     if not 0.0 < value < 180.0:
         raise argparse.ArgumentTypeError(f"expected degrees in (0, 180), got {text!r}")
+    return value
+
+
+def _half_height(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        value = float("nan")
+    if not (value > 0.0 and np.isfinite(value)):
+        raise argparse.ArgumentTypeError(f"expected a positive half-height in world units, got {text!r}")
     return value
 
 
@@ -229,7 +240,12 @@ def build_parser() -> argparse.ArgumentParser:
                    help=f"comma-separated AOVs to write: {','.join(AOVS)}")
     r.add_argument("--camera-eye", type=_vec3, metavar="X,Y,Z", help="camera position (overrides the scene's)")
     r.add_argument("--camera-target", type=_vec3, metavar="X,Y,Z", help="point the camera looks at")
-    r.add_argument("--fov", type=_fov, metavar="DEG", help="vertical field of view in degrees")
+    r.add_argument("--fov", type=_fov, metavar="DEG",
+                   help="vertical field of view in degrees (a perspective camera, also in place of an "
+                        "orthographic one)")
+    r.add_argument("--ortho", type=_half_height, metavar="HALF_HEIGHT",
+                   help="an orthographic camera whose view box is 2·HALF_HEIGHT world units tall (its width "
+                        "follows the image aspect)")
     r.add_argument("-q", "--quiet", action="store_true", help="no progress or notes on stderr")
     r.set_defaults(func=cmd_render)
 
@@ -308,6 +324,8 @@ def _previous_camera(camera, args):
     eye = args.previous_eye if args.previous_eye is not None else camera.eye
     target = args.previous_target if args.previous_target is not None else camera.target
     try:
+        if camera.is_orthographic:
+            return Camera.orthographic(eye, target, camera.up, camera.xmag, camera.ymag, camera.near, camera.far)
         return Camera.look_at(eye, target, camera.up, camera.fov_y_deg, near=camera.near, far=camera.far)
     except ValueError as exc:
         raise CLIError(f"--previous-eye/--previous-target: {exc}") from None
@@ -318,11 +336,16 @@ def _camera(scene, args):
     from .camera import Camera
 
     cam = scene.default_camera()
-    if args.camera_eye is None and args.camera_target is None and args.fov is None:
+    ortho = getattr(args, "ortho", None)
+    if args.fov is not None and ortho is not None:
+        raise CLIError("--fov (perspective) and --ortho (orthographic) exclude each other")
+    if args.camera_eye is None and args.camera_target is None and args.fov is None and ortho is None:
         return cam
     eye = args.camera_eye if args.camera_eye is not None else cam.eye
     target = args.camera_target if args.camera_target is not None else cam.target
     fov = args.fov if args.fov is not None else cam.fov_y_deg
+    if ortho is None and args.fov is None and cam.is_orthographic:
+        ortho = cam.ymag                          # the scene's orthographic camera, moved
     far = cam.far
     if args.camera_eye is not None or args.camera_target is not None:
         # Keep the whole scene inside the far plane from the new viewpoint.
@@ -336,6 +359,9 @@ def _camera(scene, args):
     if np.linalg.norm(np.cross(forward, up)) < 1e-6 * np.linalg.norm(forward):
         up = np.array([0.0, 0.0, -1.0])          # looking straight up or down
     try:
+        if ortho is not None:
+            xmag = cam.xmag * ortho / cam.ymag if cam.is_orthographic else ortho
+            return Camera.orthographic(eye, target, tuple(up), xmag, ortho, near=min(cam.near, far * 0.5), far=far)
         return Camera.look_at(eye, target, tuple(up), fov, near=min(cam.near, far * 0.5), far=far)
     except ValueError as exc:
         raise CLIError(str(exc)) from None
@@ -541,8 +567,9 @@ def cmd_info(args) -> int:
          f"{s['textures']} ({', '.join(f'{w}x{h}' for w, h in s['texture_sizes'])})"),
         ("bounds", f"min ({fmt(s['bounds_min'])})  max ({fmt(s['bounds_max'])})"),
         ("camera", "none (a default camera frames the bounds)" if s["camera"] is None else
-         f"eye ({fmt(s['camera']['eye'])})  target ({fmt(s['camera']['target'])})  "
-         f"fov {s['camera']['fov_y_deg']:g} deg"),
+         f"eye ({fmt(s['camera']['eye'])})  target ({fmt(s['camera']['target'])})  " + (
+             f"orthographic xmag {s['camera']['xmag']:g} ymag {s['camera']['ymag']:g}"
+             if s["camera"].get("projection") == "orthographic" else f"fov {s['camera']['fov_y_deg']:g} deg")),
     ]
     render = scene.settings.get("render") if isinstance(scene.settings, dict) else None
     if render:

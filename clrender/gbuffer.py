@@ -28,16 +28,19 @@ class GField:
     doc: str
 
 
-PLANES = ("albedo_spec", "depth", "normal_power", "velocity", "triangle_id")
+PLANES = ("albedo_spec", "depth", "normal_power", "velocity", "triangle_id", "emissive_occlusion")
 
 LAYOUT: tuple[GField, ...] = (
-    GField("albedo", 0, 0, 24, "srgb8x3", "diffuse albedo, sRGB-encoded 8 bits per channel (R in the low byte)"),
+    GField("albedo", 0, 0, 24, "srgb8x3", "diffuse albedo (base colour × (1 − metallic)), sRGB-encoded 8 bits per channel (R in the low byte)"),
     GField("specular_intensity", 0, 24, 8, "unorm8", "specular intensity in [0, 1]"),
     GField("linear_depth", 1, 0, 32, "float32", "view depth / far (report II.3, 'Question du Z'); +inf on background"),
-    GField("normal", 2, 0, 24, "oct12x2", "world-space unit normal, octahedral, 2×12-bit unorm (u low)"),
+    GField("normal", 2, 0, 24, "oct12x2", "world-space unit shading normal (normal map applied), octahedral, 2×12-bit unorm (u low)"),
     GField("specular_power", 2, 24, 8, "log2unorm8", "specular power p in [1, 2048] as round(255·log2(p)/11)"),
     GField("velocity", 3, 0, 32, "half2", "screen-space motion in pixels (x low, y high), IEEE half floats"),
     GField("triangle_id", 4, 0, 32, "int32", "input triangle index, -1 on background"),
+    GField("emissive", 5, 0, 24, "srgb8x3", "emissive colour factor × texture in [0, 1], sRGB 8 bits per channel; "
+                                            "shading multiplies it by the material's emissive_strength"),
+    GField("occlusion", 5, 24, 8, "unorm8", "material ambient occlusion (occlusionTexture), 1 = open"),
 )
 
 FIELDS = {f.name: f for f in LAYOUT}
@@ -45,7 +48,7 @@ FIELDS = {f.name: f for f in LAYOUT}
 # The planes each pipeline's geometry pass writes (docs/variants.md); the rest are AOVs that a
 # later pass fills. The light pre-pass's thin G-buffer is depth + normal/specular power (what the
 # light buffer reads) plus velocity and triangle id; light-indexed keeps depth and id only.
-THIN_PLANES = ("depth", "normal_power", "velocity", "triangle_id")
+THIN_PLANES = ("depth", "normal_power", "velocity", "triangle_id")    # + emissive_occlusion as an AOV
 DEPTH_PLANES = ("depth", "triangle_id")
 
 

@@ -22,40 +22,44 @@ GEOMETRY_PLANES = {"deferred": layout.PLANES, "light_prepass": layout.THIN_PLANE
 
 
 class Pipeline:
-    def __init__(self, device, config):
+    def __init__(self, device, config, ortho: bool = False):
+        """ortho: the camera is orthographic (Camera.is_orthographic): every pass that rasterizes the
+        camera's view or rebuilds positions from its depth is built with ORTHO=1."""
         self.device = device
         self.config = config
+        self.ortho = bool(ortho)
         self.queue = device.queue
+        view = {"ortho": self.ortho}
         # BLEND triangles: left to the transparency passes (A-buffer, peeling) or dithered into
         # the G-buffer (screen door); a scene without any renders exactly as without this.
         fragments = config.transparency != "screen_door"
         self.select = "opaque" if fragments else "dither"
-        self.raster = RasterPass(device, config)
-        self.passes = [SetupPass(device, config, select=self.select), BinningPass(device, config), self.raster,
-                       GBufferPass(device, config, planes=GEOMETRY_PLANES[config.pipeline]),
+        self.raster = RasterPass(device, config, **view)
+        self.passes = [SetupPass(device, config, select=self.select, **view), BinningPass(device, config),
+                       self.raster, GBufferPass(device, config, planes=GEOMETRY_PLANES[config.pipeline], **view),
                        ParticlesPass(device, config)]
         self.transparency = []          # run only for scenes with BLEND triangles; allocated on first use
         if fragments:
-            walk = FragmentsPass(device, config)
+            walk = FragmentsPass(device, config, **view)
             resolve = (AbufferPass if config.transparency == "abuffer" else PeelPass)(device, config, walk)
             self.transparency = [walk, resolve, CompositePass(device, config)]
             self.passes.append(walk)
         # Per-tile light lists (docs/light_accumulation.md): tiled culling, or the lights' screen
         # quads; "stencil" adds per-pixel bits over the tiled lists. Brute force launches no culling kernel.
         if config.light_culling in ("tiled", "stencil"):
-            self.light_cull = LightCullPass(device, config)
+            self.light_cull = LightCullPass(device, config, **view)
             self.passes.append(self.light_cull)
             if config.light_culling == "stencil":
                 from .passes.light_stencil import LightStencilPass
-                self.passes.append(LightStencilPass(device, config))
+                self.passes.append(LightStencilPass(device, config, **view))
         elif config.light_culling == "quads":
             from .passes.light_quads import LightQuadsPass
-            self.light_cull = LightQuadsPass(device, config)
+            self.light_cull = LightQuadsPass(device, config, **view)
             self.passes.append(self.light_cull)
         else:
             self.light_cull = None
         if config.ssao:                            # off: no SSAO kernel, shade uses ao = 1
-            self.passes.append(SsaoPass(device, config))
+            self.passes.append(SsaoPass(device, config, **view))
             if config.ssao_blur:
                 self.passes.append(SsaoBlurPass(device, config))
         # Shadow maps (setup/binning/raster again, per light view); off: shade.cl built without lookups.
@@ -78,17 +82,18 @@ class Pipeline:
         G-buffer. light_prepass: the light buffer from the thin G-buffer, the geometry again
         (at the msaa sub-samples), the material pass. light_indexed: the raster again, then
         forward shading of the visible fragments with their tile's lights."""
+        view = {"ortho": self.ortho}
         if config.pipeline == "deferred":
-            return [ShadePass(device, config)]
+            return [ShadePass(device, config, **view)]
         from .passes.second_geometry import RasterAgainPass, SampleGeometryPass
-        again = (RasterAgainPass(device, config, self.raster) if config.msaa == 1 else
-                 SampleGeometryPass(device, config, config.msaa, self.select))
+        again = (RasterAgainPass(device, config, self.raster, **view) if config.msaa == 1 else
+                 SampleGeometryPass(device, config, config.msaa, self.select, **view))
         if config.pipeline == "light_prepass":
             from .passes.light_buffer import LightBufferPass
             from .passes.material import MaterialPass
-            return [LightBufferPass(device, config), again, MaterialPass(device, config, config.msaa)]
+            return [LightBufferPass(device, config, **view), again, MaterialPass(device, config, config.msaa, **view)]
         from .passes.forward_shade import ForwardShadePass
-        return [again, ForwardShadePass(device, config)]
+        return [again, ForwardShadePass(device, config, **view)]
 
     @staticmethod
     def _post_passes(device, config) -> list:
@@ -117,8 +122,8 @@ class Pipeline:
         return chain + [EncodePass(device, config)]
 
     def _check_wiring(self):
-        produced = {"positions", "normals", "uvs", "triangles", "tri_material", "materials", "texels",
-                    "srgb_lut", "tex_infos", "tex_levels", "n_tris", "view_proj", "prev_view_proj",
+        produced = {"positions", "normals", "uvs", "tangents", "colors", "n_vertices", "has_colors", "surface_extras",
+                    "triangles", "tri_material", "materials", "texels", "srgb_lut", "tex_infos", "tex_levels", "n_tris", "view_proj", "prev_view_proj",
                     "near", "far", "width", "height", "has_prev", "tiles_x", "tiles_y",
                     "lights", "n_lights", "ambient", "view_matrix", "camera_params", "tan_x", "tan_y",
                     "srgb_encode", "particle_systems", "time", "sun", "shadow_lights", "scene_bounds", "camera",
@@ -144,10 +149,15 @@ class Pipeline:
             self.transparency_size = (width, height)
 
     def _set_camera(self, camera, width, height, prev_camera):
-        """Upload the camera matrices; returns the scalar camera values passes read."""
-        vp = camera.view_projection(width, height)
-        prev = prev_camera.view_projection(width, height) if prev_camera else vp
-        tan_y = float(np.tan(np.radians(camera.fov_y_deg) / 2))
+        """Upload the camera matrices; returns the scalar camera values passes read. tan_x, tan_y:
+        the image's half-extents per unit depth (perspective) or in world units (orthographic:
+        ymag·aspect, ymag), as the camera block's R·tan_x, U·tan_y."""
+        if camera.is_orthographic != self.ortho:
+            raise ValueError(f"this pipeline renders {'orthographic' if self.ortho else 'perspective'} cameras, "
+                             f"got a {camera.projection} one (Renderer picks the pipeline)")
+        vp = camera.raster_matrix(width, height)
+        prev = prev_camera.view_projection(width, height) if prev_camera else camera.view_projection(width, height)
+        tan_y = float(camera.ymag) if self.ortho else float(np.tan(np.radians(camera.fov_y_deg) / 2))
         tan_x = tan_y * width / height
         right, up, back = camera.basis()
         params = np.zeros((4, 4))
@@ -221,6 +231,8 @@ class Pipeline:
             outputs["transmittance"] = internal(res["layers"][3 * n: 4 * n])[0]
         stats = {f"{name}_ms": (end.profile.end - start.profile.start) * 1e-6 for name, start, end in timings}
         stats["total_ms"] = sum(stats.values())
+        if timings:       # first pass's start to last pass's end: the passes plus any gap between them
+            stats["span_ms"] = (timings[-1][2].profile.end - timings[0][1].profile.start) * 1e-6
         stats.update(self.passes[0].triangle_stats())
         stats["prims"] = int(self.passes[0].prim_total.get(queue=self.queue)[0])
         stats["tile_entries"] = int(self.passes[1].total.get(queue=self.queue)[0])

@@ -224,7 +224,7 @@ class Frame:
     stats: dict = field(default_factory=dict)
 
     AOV_NAMES = ("color", "light_count", "depth", "linear_depth", "normal", "albedo", "triangle_id", "velocity",
-                 "specular_intensity", "specular_power", "ao", "shadow", "fragment_count", "transmittance", "edges",
+                 "specular_intensity", "specular_power", "emissive", "occlusion", "ao", "shadow", "fragment_count", "transmittance", "edges",
                  "image")
 
     @property
@@ -277,6 +277,16 @@ class Frame:
     def velocity(self) -> np.ndarray:
         return layout.decode(self.gbuffer, "velocity")
 
+    @cached_property
+    def emissive(self) -> np.ndarray:
+        """(H, W, 3) emissive factor × texture in [0, 1], before the material's emissive_strength."""
+        return layout.decode(self.gbuffer, "emissive")
+
+    @cached_property
+    def occlusion(self) -> np.ndarray:
+        """(H, W) the material's ambient occlusion (occlusionTexture), 1 = open, 0 on background."""
+        return layout.decode(self.gbuffer, "occlusion")
+
     def aov(self, name: str) -> np.ndarray:
         if name not in self.AOV_NAMES:
             raise ValueError(f"unknown AOV {name!r}; available: {', '.join(self.AOV_NAMES)}")
@@ -328,6 +338,11 @@ class Renderer:
         if not isinstance(scene, Scene):
             raise TypeError(f"render() needs a clrender.Scene, got {type(scene).__name__}")
         camera = camera or scene.default_camera()
+        if camera.is_orthographic != self.pipeline.ortho:
+            # Orthographic cameras run the ORTHO kernel variants (docs/raster_contract.md §11): a
+            # pipeline of the other kind replaces this one (programs are cached, buffers re-made).
+            from .pipeline import Pipeline
+            self.pipeline = Pipeline(self.device, self.config, ortho=camera.is_orthographic)
         if scene_gpu.needs_upload(scene, self.device):
             memory.check(self.device, self.width, self.height, self.config, scene)
         scene_res = scene_gpu.upload(scene, self.device)

@@ -14,8 +14,10 @@ import numpy as np
 
 from . import structs
 from .camera import Camera
+from .errors import SceneError
+from .material import (ALPHA_MODES, LUMA, TEXTURE_SLOTS, Material, UVTransform,  # noqa: F401  (re-exported)
+                       metallic_roughness_to_blinn_phong)
 
-ALPHA_MODES = ("OPAQUE", "MASK", "BLEND")
 WRAP_MODES = ("repeat", "clamp", "mirror")
 
 
@@ -33,10 +35,6 @@ class ParticleSystem:
     radius_min: float
     radius_max: float
     intensity: float
-
-
-class SceneError(ValueError):
-    """Bad scene input; the message names the file (when there is one) and the problem."""
 
 
 SHADOW_MAP_SIZES = (16, 8192)      # inclusive range of a shadow map's side in texels
@@ -73,47 +71,6 @@ class Sun:
         object.__setattr__(self, "color", tuple(float(v) for v in c))
         object.__setattr__(self, "shadow", bool(self.shadow))
         object.__setattr__(self, "shadow_map_size", check_shadow_map_size(self.shadow_map_size))
-
-
-@dataclass(frozen=True)
-class Material:
-    """Blinn-Phong material as the G-buffer stores it (colors are linear)."""
-    name: str = "default"
-    base_color: tuple[float, float, float, float] = (1.0, 1.0, 1.0, 1.0)
-    base_color_texture: int = -1          # index into Scene.textures, -1 = none
-    specular_intensity: float = 0.04
-    specular_power: float = 32.0
-    double_sided: bool = True
-    alpha_mode: str = "OPAQUE"
-    alpha_cutoff: float = 0.5
-    opacity: float = 1.0                  # multiplies alpha; < 1 makes an OPAQUE material BLEND
-    refraction: float = 0.0               # BLEND: distortion of what lies behind (docs/transparency.md)
-
-    def __post_init__(self):
-        if self.alpha_mode not in ALPHA_MODES:
-            raise SceneError(f"material {self.name!r}: alpha_mode must be one of {ALPHA_MODES}, got {self.alpha_mode!r}")
-        for name, lo, hi in (("opacity", 0.0, 1.0), ("refraction", 0.0, np.inf)):
-            v = getattr(self, name)
-            if not (isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, bool)
-                    and lo <= float(v) <= hi and np.isfinite(v)):
-                raise SceneError(f"material {self.name!r}: {name} must be a finite number in [{lo}, {hi}], got {v!r}")
-            object.__setattr__(self, name, float(v))
-        if self.opacity < 1.0:
-            if self.alpha_mode == "MASK":
-                raise SceneError(f"material {self.name!r}: opacity {self.opacity} < 1 needs alpha_mode OPAQUE or BLEND, "
-                                 f"not MASK")
-            object.__setattr__(self, "alpha_mode", "BLEND")
-        if len(self.base_color) != 4:
-            raise SceneError(f"material {self.name!r}: base_color needs 4 components")
-        object.__setattr__(self, "base_color", tuple(float(c) for c in self.base_color))
-
-    @staticmethod
-    def from_metallic_roughness(name, base_color, metallic, roughness, **kw) -> "Material":
-        """glTF metallic-roughness mapped to Blinn-Phong (the mapping the project documents)."""
-        alpha = max(float(roughness), 1e-4) ** 2
-        power = float(np.clip(2.0 / alpha**2 - 2.0, 1.0, 2048.0))
-        return Material(name=name, base_color=tuple(base_color),
-                        specular_intensity=0.04 + 0.96 * float(metallic), specular_power=power, **kw)
 
 
 @dataclass(frozen=True, eq=False)   # identity semantics: cached mip chains key on it
@@ -154,6 +111,10 @@ class Scene:
     particle_systems: list = field(default_factory=list)   # ParticleSystem: animated slices of `lights`
     sun: Optional["Sun"] = None                 # the directional light (set_sun)
     previous_positions: Optional[np.ndarray] = None   # (V, 3) at the previous frame (set_transform); None: static
+    colors: Optional[np.ndarray] = None         # (V, 4) float32 linear RGBA vertex colours (COLOR_0); None: white
+    tangents: Optional[np.ndarray] = None       # (V, 4) float32 world-space unit tangent + handedness w (±1);
+                                                # None: generated at upload if a material has a normal map
+    extra_uvs: Optional[np.ndarray] = None      # (K, V, 2) float32: TEXCOORD_1 .. TEXCOORD_K; None: K = 0
 
     def __post_init__(self):
         self.positions = np.ascontiguousarray(self.positions, dtype=np.float32).reshape(-1, 3)
@@ -169,7 +130,14 @@ class Scene:
             self.triangle_face = np.arange(n_tri, dtype=np.int32)
         if self.previous_positions is not None:
             self.previous_positions = np.ascontiguousarray(self.previous_positions, dtype=np.float32)
+        if self.colors is not None:
+            self.colors = np.ascontiguousarray(self.colors, dtype=np.float32)
+        if self.tangents is not None:
+            self.tangents = np.ascontiguousarray(self.tangents, dtype=np.float32)
+        if self.extra_uvs is not None:
+            self.extra_uvs = np.ascontiguousarray(self.extra_uvs, dtype=np.float32)
         self._rest_poses: dict = {}             # mesh index -> its geometry before any set_transform
+        self._rest_tangents: dict = {}          # mesh index -> its tangents before any set_transform
         self.validate()
 
     # -- construction -------------------------------------------------------------------------
@@ -313,6 +281,14 @@ class Scene:
         n = rest_n @ np.linalg.inv(a)               # (A^-T n) for row vectors
         length = np.linalg.norm(n, axis=1, keepdims=True)
         normals[vertices] = np.where(length > 0, n / np.where(length > 0, length, 1.0), rest_n)
+        if self.tangents is not None:          # tangents are surface directions: A t; mirroring flips w
+            rest_t = self._rest_tangents.setdefault(m, self.tangents[vertices].astype(np.float64))
+            t = rest_t[:, :3] @ a.T
+            length = np.linalg.norm(t, axis=1, keepdims=True)
+            tangents = self.tangents.copy()
+            tangents[vertices, :3] = np.where(length > 0, t / np.where(length > 0, length, 1.0), 0.0)
+            tangents[vertices, 3] = rest_t[:, 3] * np.sign(np.linalg.det(a))
+            self.tangents = tangents
         triangles = self.triangles.copy()
         triangles[self.triangle_mesh == m] = rest_tris[:, [0, 2, 1]] if np.linalg.det(a) < 0 else rest_tris
         before = self.previous_positions if self.previous_positions is not None else self.positions
@@ -355,6 +331,12 @@ class Scene:
             self.positions = np.concatenate([self.positions, self.positions[shared]])
             self.normals = np.concatenate([self.normals, self.normals[shared]])
             self.uvs = np.concatenate([self.uvs, self.uvs[shared]])
+            for name in ("colors", "tangents"):
+                a = getattr(self, name)
+                if a is not None:
+                    setattr(self, name, np.concatenate([a, a[shared]]))
+            if self.extra_uvs is not None:
+                self.extra_uvs = np.concatenate([self.extra_uvs, self.extra_uvs[:, shared]], axis=1)
             if self.previous_positions is not None:
                 self.previous_positions = np.concatenate([self.previous_positions, self.previous_positions[shared]])
             triangles = self.triangles.copy()
@@ -364,9 +346,19 @@ class Scene:
         rest = (used, self.positions[used].astype(np.float64), self.normals[used].astype(np.float64),
                 self.triangles[mine].copy(), self.triangles.shape)
         self._rest_poses[m] = rest
+        if self.tangents is not None:
+            self._rest_tangents[m] = self.tangents[used].astype(np.float64)
         return rest[:4]
 
     # -- queries ------------------------------------------------------------------------------
+    @property
+    def uv_set_count(self) -> int:
+        """Texture coordinate sets: TEXCOORD_0 (`uvs`) and the `extra_uvs`."""
+        return 1 + (0 if self.extra_uvs is None else len(self.extra_uvs))
+
+    def uv_set(self, k: int) -> np.ndarray:
+        return self.uvs if k == 0 else self.extra_uvs[k - 1]
+
     @property
     def triangle_count(self) -> int:
         return int(len(self.triangles))
@@ -408,9 +400,20 @@ class Scene:
             raise SceneError(f"{where}: triangle_material must have one entry per triangle ({nt})")
         if nt and (self.triangle_material.min() < 0 or self.triangle_material.max() >= len(self.materials)):
             raise SceneError(f"{where}: a triangle references a material that does not exist")
+        for name, shape in (("colors", (nv, 4)), ("tangents", (nv, 4))):
+            a = getattr(self, name)
+            if a is not None and (np.shape(a) != shape or not np.isfinite(a).all()):
+                raise SceneError(f"{where}: {name} must be finite with shape {shape}, got {np.shape(a)}")
+        k = self.uv_set_count - 1
+        if self.extra_uvs is not None and np.shape(self.extra_uvs) != (k, nv, 2):
+            raise SceneError(f"{where}: extra_uvs must have shape (K, {nv}, 2), got {np.shape(self.extra_uvs)}")
         for m in self.materials:
-            if not -1 <= m.base_color_texture < len(self.textures):
-                raise SceneError(f"{where}: material {m.name!r} references missing texture {m.base_color_texture}")
+            for slot, (tex, uv) in m.textures_used().items():
+                if not tex < len(self.textures):
+                    raise SceneError(f"{where}: material {m.name!r} references missing texture {tex} ({slot})")
+                if uv.texcoord >= self.uv_set_count:
+                    raise SceneError(f"{where}: material {m.name!r} reads {slot} from TEXCOORD_{uv.texcoord}, but the "
+                                     f"scene has {self.uv_set_count} texture coordinate set(s)")
 
     def summary(self) -> dict:
         lo, hi = self.bounds()
@@ -428,7 +431,9 @@ class Scene:
             "bounds_min": lo.tolist(),
             "bounds_max": hi.tolist(),
             "camera": None if self.camera is None else {
-                "eye": self.camera.eye, "target": self.camera.target, "fov_y_deg": self.camera.fov_y_deg},
+                "eye": self.camera.eye, "target": self.camera.target,
+                **({"projection": "orthographic", "xmag": self.camera.xmag, "ymag": self.camera.ymag}
+                   if self.camera.is_orthographic else {"fov_y_deg": self.camera.fov_y_deg})},
         }
 
 

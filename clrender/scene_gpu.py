@@ -18,7 +18,7 @@ from PIL import Image
 from . import structs
 from .gbuffer import linear_to_srgb8, srgb_to_linear_lut
 from .passes.base import Resources
-from .scene import Scene, SceneError, Texture
+from .scene import TEXTURE_SLOTS, Scene, SceneError, Texture
 
 _MIP_CACHE: "weakref.WeakKeyDictionary[Texture, list[np.ndarray]]" = weakref.WeakKeyDictionary()
 
@@ -52,7 +52,8 @@ def texture_pool(textures: list[Texture]):
     level_records, chunks, offset = [], [], 0
     for t, tex in enumerate(textures):
         chain = mip_chain(tex)
-        infos[t] = (len(level_records), len(chain), structs.WRAP[tex.wrap_s], structs.WRAP[tex.wrap_t])
+        infos[t] = (len(level_records), len(chain), structs.WRAP[tex.wrap_s], structs.WRAP[tex.wrap_t],
+                    structs.LUT_SRGB if tex.srgb else structs.LUT_LINEAR, (0, 0, 0))
         for level in chain:
             h, w = level.shape[:2]
             level_records.append((offset, w, h, 0))
@@ -65,15 +66,103 @@ def texture_pool(textures: list[Texture]):
     return texels, infos, levels
 
 
-def material_records(scene: Scene) -> np.ndarray:
+def decode_tables() -> np.ndarray:
+    """float32[512]: the sRGB decode table (LUT_SRGB) then c / 255 (LUT_LINEAR)."""
+    return np.concatenate([srgb_to_linear_lut(), np.arange(256, dtype=np.float32) / np.float32(255.0)])
+
+
+def _slot_record(tex: int, uv) -> tuple:
+    return (uv.matrix().reshape(-1).astype(np.float32), tex, uv.texcoord)
+
+
+def shares_base_footprint(scene: Scene, m, slot: str) -> bool:
+    """Whether slot `slot` of material m can be read through its base colour texture's trilinear
+    footprint (kernels/material_eval.h sample_slot_shared): same texture size (so the same mip
+    chain), wrap modes, uv set and transform, and the slot's glTF colour space (sRGB for emissive,
+    linear for the others), so the kernel only fetches its texels."""
+    base, tex = m.base_color_texture, getattr(m, f"{slot}_texture")
+    if base < 0 or tex < 0:
+        return False
+    a, b = scene.textures[base], scene.textures[tex]
+    return (a.rgba.shape == b.rgba.shape and (a.wrap_s, a.wrap_t) == (b.wrap_s, b.wrap_t)
+            and m.base_color_uv == getattr(m, f"{slot}_uv") and b.srgb == (slot == "emissive"))
+
+
+_ORM_CACHE: "weakref.WeakKeyDictionary[Texture, dict]" = weakref.WeakKeyDictionary()
+
+
+def orm_texture(occlusion: Texture, metallic_roughness: Texture) -> Texture:
+    """glTF's ORM packing of two linear images of one size: R from the occlusion image, G, B, A
+    from the metallic-roughness one. Mip levels filter channels independently, so the merged
+    texture's texels are the two images' texels: the kernels read both slots with one fetch."""
+    per = _ORM_CACHE.setdefault(occlusion, {})
+    merged = per.get(metallic_roughness)
+    if merged is None:
+        rgba = metallic_roughness.rgba.copy()
+        rgba[..., 0] = occlusion.rgba[..., 0]
+        merged = Texture(f"{occlusion.name}+{metallic_roughness.name}", rgba, metallic_roughness.wrap_s,
+                         metallic_roughness.wrap_t, srgb=False)
+        per[metallic_roughness] = merged
+    return merged
+
+
+def device_materials(scene: Scene) -> tuple[list[Texture], np.ndarray]:
+    """The textures the device holds (the scene's, plus ORM merges) and the Material records.
+    A material whose occlusion and metallic-roughness images are distinct but both read through the
+    base colour's footprint gets one merged ORM texture for both slots (orm_texture)."""
+    textures = list(scene.textures)
+    merged_index: dict = {}
+    slots = []
+    for m in scene.materials:
+        tex = {s: getattr(m, f"{s}_texture") for s in TEXTURE_SLOTS}
+        occ, mr = tex["occlusion"], tex["metallic_roughness"]
+        if (occ >= 0 and mr >= 0 and occ != mr and scene.textures[occ].rgba.shape == scene.textures[mr].rgba.shape
+                and shares_base_footprint(scene, m, "occlusion") and shares_base_footprint(scene, m, "metallic_roughness")):
+            key = (occ, mr)
+            if key not in merged_index:
+                merged_index[key] = len(textures)
+                textures.append(orm_texture(scene.textures[occ], scene.textures[mr]))
+            tex["occlusion"] = tex["metallic_roughness"] = merged_index[key]
+        slots.append(tex)
+    return textures, material_records(scene, slots)
+
+
+def material_records(scene: Scene, slot_textures: list | None = None) -> np.ndarray:
+    """Material[] for the device; slot_textures: per material, {slot: device texture index}
+    (device_materials' remapping; default: the materials' own indices)."""
     out = np.zeros(len(scene.materials), structs.material_dtype)
     for i, m in enumerate(scene.materials):
         flags = (structs.MAT_DOUBLE_SIDED if m.double_sided else 0)
         flags |= {"OPAQUE": 0, "MASK": structs.MAT_MASK, "BLEND": structs.MAT_BLEND}[m.alpha_mode]
+        flags |= (structs.MAT_METALLIC_ROUGHNESS if m.metallic is not None else 0)
+        flags |= (structs.MAT_UNLIT if m.unlit else 0)
+        for k, slot in enumerate(TEXTURE_SLOTS[1:]):
+            flags |= (structs.MAT_SHARES_FIRST << k) if shares_base_footprint(scene, m, slot) else 0
         color = m.base_color[:3] + (m.base_color[3] * m.opacity,)     # opacity folds into alpha
-        out[i] = (color, m.base_color_texture, m.specular_intensity, m.specular_power,
-                  m.alpha_cutoff, flags, m.refraction, (0, 0))
+        tex = slot_textures[i] if slot_textures is not None else {s: getattr(m, f"{s}_texture") for s in TEXTURE_SLOTS}
+        slots = [_slot_record(tex[s], getattr(m, f"{s}_uv")) for s in TEXTURE_SLOTS]
+        out[i] = (color, m.emissive, m.emissive_strength, m.specular_intensity, m.specular_power,
+                  0.0 if m.metallic is None else m.metallic, m.roughness, m.normal_scale, m.occlusion_strength,
+                  m.alpha_cutoff, flags, m.refraction, (0, 0, 0), slots)
     return out
+
+
+def surface_extras(scene: Scene) -> bool:
+    """Whether a material emits, has an occlusion texture or is unlit: the shading then reads the
+    G-buffer's emissive_occlusion plane and the materials (docs/materials.md)."""
+    return any(m.emits or m.occlusion_texture >= 0 or m.unlit for m in scene.materials)
+
+
+def vertex_tangents(scene: Scene):
+    """The scene's tangents; generated (clrender/tangents.py) when a material has a normal map and
+    the scene has none; None when nothing needs them."""
+    if scene.tangents is not None:
+        return scene.tangents
+    sets = sorted({m.normal_uv.texcoord for m in scene.materials if m.normal_texture >= 0})
+    if not sets:
+        return None
+    from .tangents import generate_tangents
+    return generate_tangents(scene.positions, scene.normals, scene.uv_set(sets[0]), scene.triangles)
 
 
 def transparent_triangle_count(scene: Scene) -> int:
@@ -84,7 +173,7 @@ def transparent_triangle_count(scene: Scene) -> int:
 
 def _fingerprint(scene: Scene) -> tuple:
     arrays = (scene.positions, scene.normals, scene.uvs, scene.triangles, scene.triangle_material,
-              scene.previous_positions)
+              scene.previous_positions, scene.colors, scene.tangents, scene.extra_uvs)
     return tuple((id(a), np.shape(a)) for a in arrays) + (tuple(map(id, scene.materials)),
                                                           tuple(map(id, scene.textures)))
 
@@ -180,20 +269,26 @@ def upload(scene: Scene, device) -> Resources:
         a = np.ascontiguousarray(a, dtype=dtype).reshape(-1)
         return cla.to_device(q, a if a.size else np.zeros(1, dtype))
 
-    texels, infos, levels = texture_pool(scene.textures)
+    textures, materials = device_materials(scene)
+    texels, infos, levels = texture_pool(textures)
+    uvs = scene.uvs if scene.extra_uvs is None else np.concatenate([scene.uvs[None], scene.extra_uvs])
+    tangents = vertex_tangents(scene)
     res = Resources(buffers={
         "positions": put(scene.positions, np.float32),
         "normals": put(scene.normals, np.float32),
-        "uvs": put(scene.uvs, np.float32),
+        "uvs": put(uvs, np.float32),
+        "tangents": put(np.zeros(0) if tangents is None else tangents, np.float32),
+        "colors": put(np.zeros(0) if scene.colors is None else scene.colors, np.float32),
         "triangles": put(scene.triangles, np.int32),
         "tri_material": put(scene.triangle_material, np.int32),
-        "materials": cla.to_device(q, material_records(scene)),
+        "materials": cla.to_device(q, materials),
         "texels": cla.to_device(q, texels),
         "tex_infos": cla.to_device(q, infos),
         "tex_levels": cla.to_device(q, levels),
-        "srgb_lut": cla.to_device(q, srgb_to_linear_lut()),
+        "srgb_lut": cla.to_device(q, decode_tables()),
     }, values={"n_tris": scene.triangle_count, "scene_bounds": scene.bounds(),   # bounds: sun shadow fit
-               "n_transparent_tris": transparent_triangle_count(scene)})
+               "n_transparent_tris": transparent_triangle_count(scene), "n_vertices": len(scene.positions),
+               "has_colors": int(scene.colors is not None), "surface_extras": int(surface_extras(scene))})
     if scene.previous_positions is not None:     # objects moved (Scene.set_transform): the G-buffer's velocity
         res.buffers["prev_positions"] = put(scene.previous_positions, np.float32)
     _UPLOADS[key] = (weakref.ref(scene), fingerprint, res)

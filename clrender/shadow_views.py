@@ -97,7 +97,10 @@ def cascade_splits(near: float, far: float, count: int, lam: float) -> np.ndarra
 
 def sun_views(sun, camera, aspect: float, bounds, cascades: int, lam: float) -> list[MapView]:
     """Orthographic cascades over the camera frustum's depth slices (the frustum clamped to the
-    scene's bounds), each map square and snapped to its texel grid so it does not shimmer."""
+    scene's bounds), each map square and snapped to its texel grid so it does not shimmer. An
+    orthographic camera's view volume is a box: its slices are boxes too, split uniformly in
+    depth (its pixels have the same world size at every depth, so the logarithmic share of
+    the split scheme, there for perspective, would buy nothing)."""
     lo, hi = np.asarray(bounds, np.float64)
     size = sun.shadow_map_size
     s, u, f = _basis(sun.direction)
@@ -108,16 +111,18 @@ def sun_views(sun, camera, aspect: float, bounds, cascades: int, lam: float) -> 
     z0 = l_lo[2] - 2 * margin                                    # depth origin in front of the scene
     right, up, back = camera.basis()
     eye, fwd = np.asarray(camera.eye, np.float64), -back
-    tan_y = np.tan(np.radians(camera.fov_y_deg) / 2)
-    tan_x = tan_y * aspect
+    ortho = camera.is_orthographic
+    tan_x, tan_y = camera.half_extents(aspect)          # ortho: half-extents in world units
     depths = (corners - eye) @ fwd
     near = max(camera.near, float(depths.min()))
     far = min(camera.far, float(depths.max()))
     far = max(far, near * 1.001 + 1e-6)
-    splits = cascade_splits(near, far, cascades, lam)
+    splits = near + (far - near) * np.arange(cascades + 1) / cascades if ortho else \
+        cascade_splits(near, far, cascades, lam)
     out = []
     for c in range(cascades):
-        pts = np.array([eye + d * (fwd + sx * tan_x * right + sy * tan_y * up)
+        pts = np.array([eye + d * fwd + (sx * tan_x * right + sy * tan_y * up) if ortho else
+                        eye + d * (fwd + sx * tan_x * right + sy * tan_y * up)
                         for d in (splits[c], splits[c + 1]) for sx in (-1, 1) for sy in (-1, 1)])
         lp = pts @ np.stack([s, u]).T
         a = np.maximum(lp.min(0), l_lo[:2])

@@ -2,7 +2,9 @@
 import numpy as np
 
 PRIM_BACKFACE, PRIM_MASKED, PRIM_DITHER = 1, 2, 4
-MAT_DOUBLE_SIDED, MAT_MASK, MAT_BLEND = 1, 2, 4
+MAT_DOUBLE_SIDED, MAT_MASK, MAT_BLEND, MAT_METALLIC_ROUGHNESS, MAT_UNLIT = 1, 2, 4, 8, 16
+MAT_SHARES_FIRST = 32     # MAT_SHARES(slot) = MAT_SHARES_FIRST << (slot - 1), slots 1..4
+LUT_SRGB, LUT_LINEAR = 0, 256
 WRAP = {"repeat": 0, "clamp": 1, "mirror": 2}
 
 STATUS_NAMES = {0: "emitted", 1: "invalid", 2: "culled_near", 3: "degenerate",
@@ -17,12 +19,17 @@ prim_dtype = np.dtype([
     ("area", "<i8"),
 ], align=True)
 
+texslot_dtype = np.dtype([("uv", "<f4", 6), ("texture", "<i4"), ("texcoord", "<i4")], align=True)
+
 material_dtype = np.dtype([
-    ("base_color", "<f4", 4), ("texture", "<i4"), ("spec_intensity", "<f4"),
-    ("spec_power", "<f4"), ("alpha_cutoff", "<f4"), ("flags", "<u4"), ("refraction", "<f4"), ("pad", "<i4", 2),
+    ("base_color", "<f4", 4), ("emissive", "<f4", 3), ("emissive_strength", "<f4"),
+    ("spec_intensity", "<f4"), ("spec_power", "<f4"), ("metallic", "<f4"), ("roughness", "<f4"),
+    ("normal_scale", "<f4"), ("occlusion_strength", "<f4"), ("alpha_cutoff", "<f4"), ("flags", "<u4"),
+    ("refraction", "<f4"), ("pad", "<i4", 3), ("slots", texslot_dtype, 5),
 ], align=True)
 
-texinfo_dtype = np.dtype([("first_level", "<i4"), ("levels", "<i4"), ("wrap_s", "<i4"), ("wrap_t", "<i4")])
+texinfo_dtype = np.dtype([("first_level", "<i4"), ("levels", "<i4"), ("wrap_s", "<i4"), ("wrap_t", "<i4"),
+                          ("lut", "<i4"), ("pad", "<i4", 3)])
 texlevel_dtype = np.dtype([("offset", "<i4"), ("width", "<i4"), ("height", "<i4"), ("pad", "<i4")])
 
 LIGHT_POINT, LIGHT_SPOT = 0, 1
@@ -38,5 +45,5 @@ shadow_view_dtype = np.dtype([
 ], align=True)
 
 # name in structs.h -> dtype, for the layout test
-STRUCTS = {"Prim": prim_dtype, "Material": material_dtype, "TexInfo": texinfo_dtype, "TexLevel": texlevel_dtype,
+STRUCTS = {"Prim": prim_dtype, "TexSlot": texslot_dtype, "Material": material_dtype, "TexInfo": texinfo_dtype, "TexLevel": texlevel_dtype,
            "Light": light_dtype, "ShadowView": shadow_view_dtype}

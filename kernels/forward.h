@@ -6,10 +6,10 @@
  * view depth z). The surface is surface_vec.h's -- the G-buffer resolve's own code, unquantized
  * here (no packing): barycentrics, normal (flipped on back faces), base colour × texture and
  * alpha (the material's opacity included), specular terms -- at P = eye + z·dir(pixel) on the
- * pixel's view ray as shade.cl rebuilds it. Lit by lighting.h with the lights of the run's
- * light-culling tile (the report's light-indexed lists consumed by a forward pass; the run lies
- * in one tile: VEC divides LIGHT_TILE), the sun and shadow maps; no SSAO:
- *     c = albedo·(ambient + diffuse) + specular.
+ * pixel's view ray as shade.cl rebuilds it (ORTHO: lighting.h's parallel rays). Lit by
+ * lighting.h with the lights of the run's light-culling tile (the report's light-indexed lists
+ * consumed by a forward pass; the run lies in one tile: VEC divides LIGHT_TILE), the sun and shadow maps; no SSAO:
+ *     c = albedo·(ambient·occlusion + diffuse) + specular + emission (unlit: albedo; docs/materials.md).
  * Blending, front to back per lane: acc += T·alpha·c, T *= 1 - alpha.
  *
  * Kernel arguments: FORWARD_PARAMS below, in that order (clrender/passes/forward.py).
@@ -30,10 +30,7 @@
 #endif
 
 #define FORWARD_PARAMS \
-    global const Prim* prims, global const float* positions, global const float* normals, \
-    global const float* uvs, global const int* triangles, global const Material* materials, \
-    global const uint* texels, constant float* srgb_lut, global const TexInfo* tex_infos, \
-    global const TexLevel* tex_levels, global const float* camera, int width, int height, float ambient, \
+    SCENE_PARAMS(prims), global const float* camera, int width, int height, float ambient, \
     global const Light* lights, int n_lights, global const int* tile_light_offsets, \
     global const int* tile_light_counts, global const int* tile_lights, int list_capacity, int light_tiles_x, \
     global const float* shadow_atlas, int atlas_stride, global const ShadowView* shadow_views, \
@@ -53,8 +50,7 @@ typedef struct {
 } Forward;
 
 /* A `Forward` from FORWARD_PARAMS. */
-#define FORWARD_INIT { { prims, positions, normals, uvs, triangles, materials, texels, srgb_lut, tex_infos, \
-                         tex_levels }, camera, width, height, ambient, n_lights, \
+#define FORWARD_INIT { SCENE_INIT(prims), camera, width, height, ambient, n_lights, \
                        tile_light_offsets, tile_light_counts, list_capacity, light_tiles_x, \
                        LIGHT_ENV_INIT }
 
@@ -75,8 +71,14 @@ static FragmentsV shade_fragments(const Forward* f, intV pi, floatV z, intV acti
     const float3 Rs = vload4(2, f->camera).xyz, Us = vload4(3, f->camera).xyz;
     const floatV xn = (convert_floatV(px) + 0.5f) * (2.0f / (float)f->width) - 1.0f;
     const float yn = 1.0f - ((float)py + 0.5f) * (2.0f / (float)f->height);
+#if ORTHO   /* parallel rays from the eye plane (lighting.h pixel_positions) */
+    const floatV dx = F.x, dy = F.y, dz = F.z;
+    const floatV wx = (eye.x + xn * Rs.x + yn * Us.x) + z * F.x, wy = (eye.y + xn * Rs.y + yn * Us.y) + z * F.y;
+    const floatV wz = (eye.z + xn * Rs.z + yn * Us.z) + z * F.z;
+#else
     const floatV dx = F.x + xn * Rs.x + yn * Us.x, dy = F.y + xn * Rs.y + yn * Us.y, dz = F.z + xn * Rs.z + yn * Us.z;
     const floatV wx = eye.x + z * dx, wy = eye.y + z * dy, wz = eye.z + z * dz;
+#endif
     const floatV inv_d = rsqrt(dx * dx + dy * dy + dz * dz);
 
 #if BRUTE_FORCE
@@ -91,9 +93,11 @@ static FragmentsV shade_fragments(const Forward* f, intV pi, floatV z, intV acti
                       -dx * inv_d, -dy * inv_d, -dz * inv_d, sf.spec_i, sf.spec_p, z, px, py,
                       0, 0, VEC, 0, &dr, &dg, &db, &sr, &sg, &sb);
     FragmentsV out;
-    out.r = sf.r * (f->ambient + dr) + sr;
-    out.g = sf.g * (f->ambient + dg) + sg;
-    out.b = sf.b * (f->ambient + db) + sb;
+    const floatV strength = GATHER_M(floatV, f->scene.materials, sf.mat, emissive_strength);
+    const intV unlit = (sf.mat_flags & (int)MAT_UNLIT) != 0;
+    out.r = select(sf.r * (f->ambient * sf.occlusion + dr) + sr + sf.er * strength, sf.r, unlit);
+    out.g = select(sf.g * (f->ambient * sf.occlusion + dg) + sg + sf.eg * strength, sf.g, unlit);
+    out.b = select(sf.b * (f->ambient * sf.occlusion + db) + sb + sf.eb * strength, sf.b, unlit);
     out.a = clamp(sf.a, 0.0f, 1.0f);
     out.ox = 0.0f;
     out.oy = 0.0f;

@@ -37,12 +37,8 @@
 #include "gbuffer_decode.h"
 
 kernel __attribute__((reqd_work_group_size(LTILE / VEC, LTILE, 1)))
-void forward_shade(global const int* vis_prim, global const float* vis_depth, global const Prim* prims,
-                   int width, int height, float far,
-                   global const float* positions, global const float* normals, global const float* uvs,
-                   global const int* triangles, global const Material* materials,
-                   global const uint* texels, constant float* srgb_lut, constant float2* srgb_encode,
-                   global const TexInfo* tex_infos, global const TexLevel* tex_levels,
+void forward_shade(global const int* vis_prim, global const float* vis_depth, int width, int height, float far,
+                   SCENE_PARAMS(prims), constant float2* srgb_encode,
                    global const float* prev_view_proj, global const float* prev_positions, int has_prev,
                    global const float* camera, global const Light* lights, int n_lights, float ambient,
                    global const int* tile_light_offsets, global const int* tile_light_counts,
@@ -72,8 +68,7 @@ void forward_shade(global const int* vis_prim, global const float* vis_depth, gl
     const int2 range = tile_light_range(tile_light_offsets, tile_light_counts, list_capacity, tile, n_lights);
     const int first = range.x, count = range.y;
     if (ANY(fg)) {
-        const SceneV scene = { prims, positions, normals, uvs, triangles, materials, texels, srgb_lut,
-                               tex_infos, tex_levels };
+        const SceneV scene = SCENE_INIT(prims);
         const intV px = px0 + LANES, pyv = (intV)py;
         const SurfaceV sf = surface_at(&scene, select((intV)0, pidx, fg), fg, px, pyv);
         const floatV z = as_floatV(load_plane((global const uint*)vis_depth, p0, valid, 0u));
@@ -93,9 +88,10 @@ void forward_shade(global const int* vis_prim, global const float* vis_depth, gl
         accumulate_lights_counted(&env, first, count, fg, 0, 0, &evaluated, &useful, v.px, v.py, v.pz, s.nx, s.ny,
                                   s.nz, v.vx, v.vy, v.vz, spec_i, s.spec_p, s.depth, px, py, shadow_out, p0, valid,
                                   npix, &dr, &dg, &db, &sr, &sg, &sb);
-        cr = select((floatV)0.0f, ar * (ambient + dr) + sr, fg);
-        cg = select((floatV)0.0f, ag * (ambient + dg) + sg, fg);
-        cb = select((floatV)0.0f, ab * (ambient + db) + sb, fg);
+        const SurfaceExtrasV x = material_extras(planes[GB_EMISSIVE_PLANE], sf.mat, fg, materials, srgb_lut);
+        cr = select((floatV)0.0f, compose_extras(ar, ambient, dr, sr, x.er, x.occlusion, x.unlit), fg);
+        cg = select((floatV)0.0f, compose_extras(ag, ambient, dg, sg, x.eg, x.occlusion, x.unlit), fg);
+        cb = select((floatV)0.0f, compose_extras(ab, ambient, db, sb, x.eb, x.occlusion, x.unlit), fg);
     }
     gbuffer_store(gbuffer, npix, p0, valid, planes);
     store_plane(color, p0, valid, cr);

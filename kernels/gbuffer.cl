@@ -14,10 +14,10 @@
  * light pre-pass's thin G-buffer skips albedo/specular intensity (built with SURFACE_TEXTURES
  * 0: no texture read); light-indexed writes depth and id only, and evaluates no surface.
  *
- * Buffers: vis_depth float[W·H], vis_prim int[W·H]; prims Prim[*]; scene positions/normals
- *          float[3V], uvs float[2V], triangles int[3T], materials Material[M]; textures;
- *          prev_view_proj float[16], prev_positions float[3V]; srgb_lut float[256] (decode),
- *          srgb_encode float2[4096].
+ * Buffers: vis_depth float[W·H], vis_prim int[W·H]; the scene (SCENE_PARAMS, surface_vec.h:
+ *          prims Prim[*], positions/normals float[3V], uv sets float[K][2V], triangles int[3T],
+ *          materials Material[M], textures, tangents/colors float[4V], decode tables float[512]);
+ *          srgb_encode float2[4096]; prev_view_proj float[16], prev_positions float[3V].
  *          out: gbuffer uint[GB_PLANES][H·W].
  * Work-groups: 1-D, work-item i covers pixels [i·VEC, i·VEC + VEC); no barriers.
  */
@@ -28,13 +28,8 @@
 
 #include "gbuffer_pack.h"
 
-kernel void gbuffer_resolve(global const float* vis_depth, global const int* vis_prim,
-                            global const Prim* prims, int width, int height, float far,
-                            global const float* positions, global const float* normals,
-                            global const float* uvs, global const int* triangles,
-                            global const Material* materials,
-                            global const uint* texels, constant float* srgb_lut, constant float2* srgb_encode,
-                            global const TexInfo* tex_infos, global const TexLevel* tex_levels,
+kernel void gbuffer_resolve(global const float* vis_depth, global const int* vis_prim, int width, int height,
+                            float far, SCENE_PARAMS(prims), constant float2* srgb_encode,
                             global const float* prev_view_proj, global const float* prev_positions, int has_prev,
                             global uint* gbuffer)
 {
@@ -70,8 +65,7 @@ kernel void gbuffer_resolve(global const float* vis_depth, global const int* vis
     if (ANY(fg)) {
         uintV planes_fg[GB_PLANES];
 #if GB_WRITE & ~((1 << GB_LINEAR_DEPTH_PLANE) | (1 << GB_TRIANGLE_ID_PLANE))
-        const SceneV scene = { prims, positions, normals, uvs, triangles, materials, texels, srgb_lut,
-                               tex_infos, tex_levels };
+        const SceneV scene = SCENE_INIT(prims);
         const SurfaceV sf = surface_at(&scene, w, fg, px, py);
         const uintV vel = pack_velocity(&sf, prev_view_proj, prev_positions, has_prev, width, height, px, py);
         gbuffer_pack(&sf, depth / far, vel, srgb_encode, planes_fg);

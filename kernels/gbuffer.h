@@ -4,7 +4,7 @@
 #define CLRENDER_GBUFFER_H
 
 #ifndef GB_PLANES
-#define GB_PLANES 5
+#define GB_PLANES 6
 #endif
 #ifndef GB_ALBEDO_PLANE
 #define GB_ALBEDO_PLANE 0
@@ -47,6 +47,18 @@
 #endif
 #ifndef GB_TRIANGLE_ID_SHIFT
 #define GB_TRIANGLE_ID_SHIFT 0
+#endif
+#ifndef GB_EMISSIVE_PLANE
+#define GB_EMISSIVE_PLANE 5
+#endif
+#ifndef GB_EMISSIVE_SHIFT
+#define GB_EMISSIVE_SHIFT 0
+#endif
+#ifndef GB_OCCLUSION_PLANE
+#define GB_OCCLUSION_PLANE 5
+#endif
+#ifndef GB_OCCLUSION_SHIFT
+#define GB_OCCLUSION_SHIFT 24
 #endif
 
 #include "vec.h"

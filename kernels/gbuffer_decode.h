@@ -5,6 +5,7 @@
  */
 #ifndef CLRENDER_GBUFFER_DECODE_H
 #define CLRENDER_GBUFFER_DECODE_H
+#include "structs.h"
 #include "gbuffer.h"
 
 typedef struct {
@@ -35,5 +36,47 @@ static inline void decode_albedo(uintV w_alb, constant float* srgb_lut, floatV* 
     *ag = GATHER_F(srgb_lut, as_intV((alb >> 8) & 255u));
     *ab = GATHER_F(srgb_lut, as_intV((alb >> 16) & 255u));
     *spec_i = convert_floatV((w_alb >> GB_SPECULAR_INTENSITY_SHIFT) & 255u) * (1.0f / 255.0f);
+}
+
+/* What the emissive_occlusion plane and the material add to the lighting (docs/materials.md):
+ * emissive e × emissive_strength, the occlusion multiplying the ambient term, and the unlit
+ * lanes. The strength and the unlit flag are per material, read through the triangle id. */
+typedef struct {
+    floatV er, eg, eb;          /* HDR emission */
+    floatV occlusion;
+    intV unlit;
+} SurfaceExtrasV;
+
+/* From the emissive_occlusion word and the lanes' materials. */
+static inline SurfaceExtrasV material_extras(uintV w_eo, intV mat, intV fg, global const Material* materials,
+                                             constant float* srgb_lut)
+{
+    SurfaceExtrasV x;
+    const floatV strength = GATHER_M(floatV, materials, mat, emissive_strength);
+    const uintV e = w_eo >> GB_EMISSIVE_SHIFT;
+    x.er = GATHER_F(srgb_lut, as_intV(e & 255u)) * strength;
+    x.eg = GATHER_F(srgb_lut, as_intV((e >> 8) & 255u)) * strength;
+    x.eb = GATHER_F(srgb_lut, as_intV((e >> 16) & 255u)) * strength;
+    x.occlusion = convert_floatV((w_eo >> GB_OCCLUSION_SHIFT) & 255u) * (1.0f / 255.0f);
+    x.unlit = fg & ((as_intV(GATHER_M(uintV, materials, mat, flags)) & (int)MAT_UNLIT) != 0);
+#if VEC == 1
+    x.unlit = x.unlit ? 1 : 0;
+#endif
+    return x;
+}
+
+/* From the emissive_occlusion word and the triangle ids (-> tri_material -> Material). */
+static inline SurfaceExtrasV decode_extras(uintV w_eo, intV tri, intV fg, global const int* tri_material,
+                                           global const Material* materials, constant float* srgb_lut)
+{
+    return material_extras(w_eo, GATHER_I(tri_material, select((intV)0, tri, fg)), fg, materials, srgb_lut);
+}
+
+/* The report's global multiply with the material's extras: albedo·(ambient·ao + diffuse) +
+ * specular + emission; unlit lanes: the albedo alone. */
+static inline floatV compose_extras(floatV albedo, floatV ambient_ao, floatV diffuse, floatV specular, floatV emission,
+                                    floatV occlusion, intV unlit)
+{
+    return select(albedo * (ambient_ao * occlusion + diffuse) + specular + emission, albedo, unlit);
 }
 #endif

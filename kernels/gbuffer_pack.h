@@ -51,6 +51,8 @@ static inline void gbuffer_pack(const SurfaceV* sf, floatV linear_depth, uintV v
     GB_PUT(planes, SPECULAR_POWER, pack_log2unorm8V(sf->spec_p));
     GB_PUT(planes, VELOCITY, vel);
     GB_PUT(planes, TRIANGLE_ID, as_uintV(sf->tri));
+    GB_PUT(planes, EMISSIVE, pack_srgb8x3V(sf->er, sf->eg, sf->eb, srgb_encode));
+    GB_PUT(planes, OCCLUSION, unormV(sf->occlusion, 8));
 }
 
 /* The background's planes: depth +inf, triangle id -1, everything else 0. */

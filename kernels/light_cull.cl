@@ -10,7 +10,8 @@
  *     and with DEPTH_MASK Harada's 2.5D culling mask: which of 32 slices of [min, max] hold a
  *     pixel, so a light floating in the empty gap of a depth discontinuity is rejected.
  *  3. `light_cull_count` / `light_cull_fill`: one work-item per tile tests every light, VEC
- *     lights at a time, against the tile's four side planes (through the eye) and its depth
+ *     lights at a time, against the tile's four side planes (through the eye; ORTHO: the
+ *     tile's box, planes x = u·tan_x, y = v·tan_y parallel to the view axis) and its depth
  *     range; count, prefix sum (scan.cl), then fill in light-index order, so
  *     lists (and the shading sums over them) are the same on every run. No cap: the list
  *     buffer grows when the total says it must.
@@ -30,6 +31,9 @@
 #endif
 #ifndef DEPTH_MASK
 #define DEPTH_MASK 0
+#endif
+#ifndef ORTHO
+#define ORTHO 0      /* 1: orthographic camera: tan_x, tan_y are the view box's half-extents */
 #endif
 
 kernel void light_view_bounds(global const Light* lights, int n_lights, int n_padded, global const float* view,
@@ -104,7 +108,8 @@ kernel void tile_depth_bounds(global const uint* gbuffer, int width, int height,
     tile_depth[t] = (float4)(lo * far, hi * far, as_float(mask), 0.0f);
 }
 
-/* The tile's side planes in view space: inside when dot(n, p) >= 0; n unit. */
+/* The tile's side planes in view space: inside when dot(n, p) >= 0; n unit (ORTHO: when
+ * dot(n, p) + w >= 0, the planes at the tile's edges x = u·tan_x, y = v·tan_y). */
 typedef struct { float4 left, right, bottom, top; } TilePlanes;
 
 static TilePlanes tile_planes(int t, int tiles_x, int width, int height, float tan_x, float tan_y)
@@ -114,10 +119,17 @@ static TilePlanes tile_planes(int t, int tiles_x, int width, int height, float t
     float v_top = 1.0f - (float)((t / tiles_x) * LTILE) / (float)height * 2.0f;
     float v_bottom = 1.0f - (float)min((t / tiles_x) * LTILE + LTILE, height) / (float)height * 2.0f;
     TilePlanes p;
+#if ORTHO
+    p.left = (float4)(1.0f, 0.0f, 0.0f, -u0 * tan_x);
+    p.right = (float4)(-1.0f, 0.0f, 0.0f, u1 * tan_x);
+    p.bottom = (float4)(0.0f, 1.0f, 0.0f, -v_bottom * tan_y);
+    p.top = (float4)(0.0f, -1.0f, 0.0f, v_top * tan_y);
+#else
     p.left = (float4)(normalize((float3)(1.0f, 0.0f, u0 * tan_x)), 0.0f);
     p.right = (float4)(normalize((float3)(-1.0f, 0.0f, -u1 * tan_x)), 0.0f);
     p.bottom = (float4)(normalize((float3)(0.0f, 1.0f, v_bottom * tan_y)), 0.0f);
     p.top = (float4)(normalize((float3)(0.0f, -1.0f, -v_top * tan_y)), 0.0f);
+#endif
     return p;
 }
 
@@ -125,10 +137,17 @@ static inline intV sphere_in_tile(const TilePlanes* p, float4 depth, floatV x, f
 {
     floatV neg_r = -r;
     intV hit = r >= 0.0f;
+#if ORTHO
+    hit &= (p->left.x * x + p->left.w) >= neg_r;
+    hit &= (p->right.x * x + p->right.w) >= neg_r;
+    hit &= (p->bottom.y * y + p->bottom.w) >= neg_r;
+    hit &= (p->top.y * y + p->top.w) >= neg_r;
+#else
     hit &= (p->left.x * x + p->left.z * z) >= neg_r;
     hit &= (p->right.x * x + p->right.z * z) >= neg_r;
     hit &= (p->bottom.y * y + p->bottom.z * z) >= neg_r;
     hit &= (p->top.y * y + p->top.z * z) >= neg_r;
+#endif
     floatV near_z = -z - r, far_z = -z + r;                 /* the sphere's view-depth range */
     hit &= (far_z >= depth.x) & (near_z <= depth.y);
 #if DEPTH_MASK

@@ -14,8 +14,9 @@
  *     tangent point in front of the near plane gives way to the end of the disk's chord on it,
  *     so a sphere that holds the eye covers the whole screen and one beside the camera only
  *     its side; a sphere wholly before the near plane or beyond the far plane covers nothing
- *     (no pixel lies there). r is widened by 1e-4·r plus 1e-5 of the distances involved
- *     (float rounding of the centre and of the pixels' rebuilt positions), so every pixel whose
+ *     (no pixel lies there). ORTHO (orthographic camera, parallel rays): the rectangle is the
+ *     sphere's box, x = ((cx ± r)/tan_x + 1)·W/2, y = (1 - (cy ± r)/tan_y)·H/2. r is widened
+ *     by 1e-4·r plus 1e-5 of the distances involved (float rounding of the centre and of the pixels' rebuilt positions), so every pixel whose
  *     position shade.cl finds inside the sphere (d² < r²) has its centre in the rectangle. The
  *     rectangle is kept (quad_rect, for tests and tools) and turned into the inclusive range of
  *     light tiles holding a pixel centre inside it (quad_tiles; empty: x0 > x1).
@@ -35,6 +36,9 @@
 
 #ifndef LTILE
 #define LTILE 16
+#endif
+#ifndef ORTHO
+#define ORTHO 0      /* 1: orthographic camera: tan_x, tan_y are the view box's half-extents */
 #endif
 
 /* The range (lo, hi) of u/D' over the points (u, D') of the disk of centre (c, D), radius r,
@@ -81,7 +85,11 @@ kernel void light_quad_rects(global const float* sphere_x, global const float* s
     if (r0 >= 0.0f) {
         const float r = r0 + 1e-4f * r0 + 1e-5f * (fabs(cx) + fabs(cy) + fabs(D) + eye_distance);
         if (!(D + r < near || D - r > far)) {    /* else wholly before the near or beyond the far plane */
+#if ORTHO
+            const float2 sx = (float2)(cx - r, cx + r), sy = (float2)(cy - r, cy + r);
+#else
             const float2 sx = axis_slopes(cx, D, r, near), sy = axis_slopes(cy, D, r, near);
+#endif
             rect = (float4)((sx.x / tan_x + 1.0f) * 0.5f * (float)width, (1.0f - sy.y / tan_y) * 0.5f * (float)height,
                             (sx.y / tan_x + 1.0f) * 0.5f * (float)width, (1.0f - sy.x / tan_y) * 0.5f * (float)height);
         }

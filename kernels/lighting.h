@@ -36,6 +36,9 @@
 #ifndef STENCIL
 #define STENCIL 0
 #endif
+#ifndef ORTHO
+#define ORTHO 0      /* 1: orthographic camera (pixel_positions) */
+#endif
 #include "shadow.h"
 
 /* What every point of a frame is lit by. */
@@ -87,7 +90,9 @@ static inline void store_plane(global float* plane, int p0, int valid, floatV v)
 /* The view rays through the run's pixel centres (px0 + lane, py) and the world positions at
  * view depth `depth` on them (report II.3, "Question du Z"): dir = F + x·R·tan_x + y·U·tan_y
  * (camera = eye, F, R·tan_x, U·tan_y as float4 each), P = eye + depth·dir. shade.cl and
- * light_stencil.cl rebuild positions with this one function, so their light tests agree. */
+ * light_stencil.cl rebuild positions with this one function, so their light tests agree.
+ * ORTHO (orthographic camera: tan_x, tan_y are the view box's half-extents, world units): the
+ * rays are parallel, dir = F, from the eye plane: P = (eye + x·R·tan_x + y·U·tan_y) + depth·F. */
 static inline void pixel_positions(global const float* camera, int width, int height, int px0, int py, floatV depth,
                                    floatV* dx, floatV* dy, floatV* dz, floatV* px, floatV* py_, floatV* pz)
 {
@@ -95,8 +100,15 @@ static inline void pixel_positions(global const float* camera, int width, int he
     const float3 Rs = vload4(2, camera).xyz, Us = vload4(3, camera).xyz;
     floatV xn = (convert_floatV(px0 + LANES) + 0.5f) * (2.0f / (float)width) - 1.0f;
     floatV yn = 1.0f - ((float)py + 0.5f) * (2.0f / (float)height);
+#if ORTHO
+    *dx = F.x; *dy = F.y; *dz = F.z;
+    *px = (eye.x + xn * Rs.x + yn * Us.x) + depth * F.x;
+    *py_ = (eye.y + xn * Rs.y + yn * Us.y) + depth * F.y;
+    *pz = (eye.z + xn * Rs.z + yn * Us.z) + depth * F.z;
+#else
     *dx = F.x + xn * Rs.x + yn * Us.x; *dy = F.y + xn * Rs.y + yn * Us.y; *dz = F.z + xn * Rs.z + yn * Us.z;
     *px = eye.x + depth * *dx; *py_ = eye.y + depth * *dy; *pz = eye.z + depth * *dz;
+#endif
 }
 
 /* The positions P (pixel_positions) and the unit vectors V from them to the eye. */

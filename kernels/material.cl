@@ -8,8 +8,9 @@
  * sample's surface (surface_vec.h: base colour × texture, specular intensity) is quantized
  * exactly as the G-buffer stores it (8-bit sRGB albedo, 8-bit intensity: every pipeline shades
  * the same surface) and combined with the light buffer at the pixel:
- *     c_s = albedo·(ambient·ao + D) + s·S                       (SPECULAR_RGB 1)
- *     c_s = albedo·(ambient·ao + D) + s·S_lum·D / lum(D)        (SPECULAR_RGB 0; 0 where lum(D) = 0)
+ *     c_s = albedo·(ambient·ao·occ + D) + s·S + e                       (SPECULAR_RGB 1)
+ *     c_s = albedo·(ambient·ao·occ + D) + s·S_lum·D / lum(D) + e        (SPECULAR_RGB 0; 0 where lum(D) = 0)
+ * with the material's occlusion occ and emission e (gbuffer_decode.h; unlit: c_s = albedo).
  * lum = (0.2126, 0.7152, 0.0722); background samples give 0. Like hardware multisampling, each
  * sample's surface is evaluated at the pixel centre (surface_at_offset, undoing the sample's
  * shift; outside its triangle on edge pixels, as without centroid sampling), so only coverage
@@ -17,7 +18,7 @@
  * `spread` after, color = c_0 + sum / samples at the last sample: a pixel covered by one
  * surface keeps c_0 exactly.
  * When `write_aov` is set (s = 0; with one sample its surface is the pixel centre's), the albedo
- * and specular intensity plane of the G-buffer (an AOV) is written from it, with the same bits
+ * and specular intensity plane and the emissive/occlusion plane of the G-buffer (AOVs) are written from it, with the same bits
  * as gbuffer.cl; with several samples the pass-1 surface fills it instead (aov_prim / aov_prims).
  *
  * Buffers: vis_prim int[W·H] (the sample's), prims Prim[*] (the sample's); aov_prim int[W·H] and
@@ -33,7 +34,7 @@
 #include "gbuffer.h"
 #include "vec.h"
 #ifndef GB_WRITE
-#define GB_WRITE (1 << GB_ALBEDO_PLANE)
+#define GB_WRITE ((1 << GB_ALBEDO_PLANE) | (1 << GB_EMISSIVE_PLANE))
 #endif
 #include "gbuffer_pack.h"
 #include "gbuffer_decode.h"
@@ -66,12 +67,8 @@ typedef float lb_t;
         for (int l = 0; l < valid; ++l) LANE_F(out, l) = LB_LOAD1(plane, pix0 + l); \
     }
 
-kernel void material(global const int* vis_prim, global const Prim* prims, int width, int height,
-                     global const float* positions, global const float* normals, global const float* uvs,
-                     global const int* triangles, global const Material* materials,
-                     global const uint* texels, constant float* srgb_lut, constant float2* srgb_encode,
-                     global const TexInfo* tex_infos, global const TexLevel* tex_levels,
-                     global const lb_t* light_buf, float ambient, global const float* ao,
+kernel void material(global const int* vis_prim, int width, int height, SCENE_PARAMS(prims),
+                     constant float2* srgb_encode, global const lb_t* light_buf, float ambient, global const float* ao,
                      int sample, int samples, int sample_x, int sample_y, int write_aov,
                      global const int* aov_prim, global const Prim* aov_prims, global float* color,
                      global float* spread, global uint* gbuffer)
@@ -86,8 +83,7 @@ kernel void material(global const int* vis_prim, global const Prim* prims, int w
         LANE_I(px, l) = cx; LANE_I(py, l) = cy;
         if (++cx == width) { cx = 0; ++cy; }
     }
-    const SceneV scene = { prims, positions, normals, uvs, triangles, materials, texels, srgb_lut,
-                           tex_infos, tex_levels };
+    const SceneV scene = SCENE_INIT(prims);
 
     const intV pidx = as_intV(load_plane((global const uint*)vis_prim, pix0, valid, 0xffffffffu));
     intV fg = pidx >= 0;
@@ -95,11 +91,14 @@ kernel void material(global const int* vis_prim, global const Prim* prims, int w
     fg = fg ? 1 : 0;
 #endif
     floatV cr = 0.0f, cg = 0.0f, cb = 0.0f;
-    uintV w_alb = 0u;
+    uintV w_alb = 0u, w_eo = 0u;
     if (ANY(fg)) {
         const SurfaceV sf = surface_at_offset(&scene, select((intV)0, pidx, fg), fg, px, py, -sample_x, -sample_y);
         w_alb = (pack_srgb8x3V(sf.r, sf.g, sf.b, srgb_encode) << GB_ALBEDO_SHIFT)
                 | (unormV(sf.spec_i, 8) << GB_SPECULAR_INTENSITY_SHIFT);
+        w_eo = (pack_srgb8x3V(sf.er, sf.eg, sf.eb, srgb_encode) << GB_EMISSIVE_SHIFT)
+               | (unormV(sf.occlusion, 8) << GB_OCCLUSION_SHIFT);
+        const SurfaceExtrasV x = material_extras(w_eo, sf.mat, fg, materials, srgb_lut);
         floatV ar, ag, ab, spec_i;
         decode_albedo(w_alb, srgb_lut, &ar, &ag, &ab, &spec_i);
         floatV dr, dg, db, sr, sg, sb;
@@ -118,15 +117,16 @@ kernel void material(global const int* vis_prim, global const Prim* prims, int w
 #else
         const float ambient_ao = ambient;
 #endif
-        cr = select((floatV)0.0f, ar * (ambient_ao + dr) + spec_i * sr, fg);
-        cg = select((floatV)0.0f, ag * (ambient_ao + dg) + spec_i * sg, fg);
-        cb = select((floatV)0.0f, ab * (ambient_ao + db) + spec_i * sb, fg);
+        cr = select((floatV)0.0f, compose_extras(ar, ambient_ao, dr, spec_i * sr, x.er, x.occlusion, x.unlit), fg);
+        cg = select((floatV)0.0f, compose_extras(ag, ambient_ao, dg, spec_i * sg, x.eg, x.occlusion, x.unlit), fg);
+        cb = select((floatV)0.0f, compose_extras(ab, ambient_ao, db, spec_i * sb, x.eb, x.occlusion, x.unlit), fg);
     }
     if (write_aov) {
         uintV planes[GB_PLANES];
         gbuffer_background(planes);
         if (write_aov == 1) {            /* this sample is the pixel centre's surface */
             planes[GB_ALBEDO_PLANE] = select((uintV)0u, w_alb, as_uintV(fg) != 0u);
+            planes[GB_EMISSIVE_PLANE] = select((uintV)0u, w_eo, as_uintV(fg) != 0u);
         } else {                         /* pass 1's surface at the centre */
             const intV ai = as_intV(load_plane((global const uint*)aov_prim, pix0, valid, 0xffffffffu));
             intV afg = ai >= 0;
@@ -134,12 +134,14 @@ kernel void material(global const int* vis_prim, global const Prim* prims, int w
             afg = afg ? 1 : 0;
 #endif
             if (ANY(afg)) {
-                const SceneV centre = { aov_prims, positions, normals, uvs, triangles, materials, texels, srgb_lut,
-                                        tex_infos, tex_levels };
+                const SceneV centre = SCENE_INIT(aov_prims);
                 const SurfaceV sf = surface_at(&centre, select((intV)0, ai, afg), afg, px, py);
                 const uintV w = (pack_srgb8x3V(sf.r, sf.g, sf.b, srgb_encode) << GB_ALBEDO_SHIFT)
                                 | (unormV(sf.spec_i, 8) << GB_SPECULAR_INTENSITY_SHIFT);
+                const uintV eo = (pack_srgb8x3V(sf.er, sf.eg, sf.eb, srgb_encode) << GB_EMISSIVE_SHIFT)
+                                 | (unormV(sf.occlusion, 8) << GB_OCCLUSION_SHIFT);
                 planes[GB_ALBEDO_PLANE] = select((uintV)0u, w, as_uintV(afg) != 0u);
+                planes[GB_EMISSIVE_PLANE] = select((uintV)0u, eo, as_uintV(afg) != 0u);
             }
         }
         gbuffer_store(gbuffer, npix, pix0, valid, planes);

@@ -50,12 +50,13 @@ void raster_tiles(global const Prim* prims, global const int* tile_offsets, glob
                   global const float* uvs, global const int* triangles, global const Material* materials,
                   global const uint* texels, constant float* srgb_lut,
                   global const TexInfo* tex_infos, global const TexLevel* tex_levels,
+                  global const float* colors, int n_vertices, int has_colors,
                   global float* vis_depth, int out_offset, int out_stride, global int* vis_prim)
 {
     const int px0 = get_global_id(0) * VEC, py = get_global_id(1);
     const int tile = get_group_id(1) * tiles_x + get_group_id(0);
     const int sx0 = px0 * 256 + 128, sy = py * 256 + 128;     /* first sample of the run */
-    const Textures tx = { texels, srgb_lut, tex_infos, tex_levels };
+    const Textures tx = { texels, srgb_lut, tex_infos, tex_levels, colors, n_vertices, has_colors };
 
     floatV best_depth = (floatV)INFINITY;
     intV best_tri = (intV)INT_MAX, best_prim = (intV)(-1);

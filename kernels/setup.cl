@@ -17,7 +17,8 @@
  * Buffers: positions float[3V] world space; triangles int[3T]; tri_material int[T];
  *          materials Material[M]; view_proj float[16] row-major.
  *          out: prim_count int[T], status uchar[T] (STATUS_*), staged Prim[T], prims Prim[capacity].
- * ORTHO=1 (shadow maps of the sun, clrender/passes/shadow.py): the matrix is orthographic
+ * ORTHO=1 (shadow maps of the sun, clrender/passes/shadow.py; orthographic cameras,
+ * docs/raster_contract.md §11): the matrix is orthographic
  * (clip.w = 1) and clip.z is the linear depth; the near plane is z >= near and Prim.inv_w
  * holds the vertex depths, which raster.cl then interpolates linearly in screen space.
  * Work-groups: 1-D, any size; no local memory, no barriers.

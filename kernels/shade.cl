@@ -11,7 +11,10 @@
  * and applies the "global multiply": color = albedo·(ambient + diffuse) + specular. With SSAO
  * the ambient pass is the report's occlusion pass (III.1): ambient becomes ambient·ao, ao read
  * from the ssao pass's buffer; without it (SSAO 0) ao is not read and the arithmetic is unchanged.
- * Background pixels get 0. The loop over lights is uniform across the run's lanes, so light
+ * With surface_extras (a scene with emissive, occlusion-mapped or unlit materials), the
+ * emissive_occlusion plane and the material through the triangle id add the emission, scale the
+ * ambient term by the material's occlusion and give unlit pixels their albedo alone
+ * (gbuffer_decode.h, docs/materials.md). Background pixels get 0. The loop over lights is uniform across the run's lanes, so light
  * records are scalar loads and the math is VEC-wide.
  * Shadows (SHADOWS 1, report II.4): a spot light with `shadow` >= 0 multiplies its A·S by its
  * shadow map's visibility (shadow.h) where A·S > 0; the sun (has_sun: a directional light, no
@@ -34,6 +37,7 @@
  *          shadow_out float[shadow_planes][H·W] (visibility; spots from plane spot_plane0),
  *          light_pairs int[2][H·W] (evaluated, useful). stencil uint[stencil_words][H·W]
  *          (read if STENCIL: bit k of word k/32 of a pixel = list entry k reaches it).
+ *          tri_material int[T], materials Material[M] (read if surface_extras).
  * Work-groups: (LTILE/VEC, LTILE); global size = (tiles_x·LTILE/VEC, tiles_y·LTILE).
  */
 #pragma OPENCL FP_CONTRACT OFF
@@ -62,6 +66,7 @@ void shade(global const uint* gbuffer, int width, int height, float far, global 
            float shadow_bias, float shadow_slope_bias, float shadow_normal_offset,
            int has_sun, global const float* sun, int sun_cascades, int spot_view0, int spot_plane0,
            global const uint* stencil, int stencil_words,
+           int surface_extras, global const int* tri_material, global const Material* materials,
            global float* color, global int* light_count, global float* shadow_out, global int* light_pairs)
 {
     const int px0 = get_global_id(0) * VEC, py = get_global_id(1);
@@ -94,9 +99,18 @@ void shade(global const uint* gbuffer, int width, int height, float far, global 
 #else
     const float ambient_ao = ambient;
 #endif
-    floatV cr = select((floatV)0.0f, ar * (ambient_ao + dr) + sr, fg);
-    floatV cg = select((floatV)0.0f, ag * (ambient_ao + dg) + sg, fg);
-    floatV cb = select((floatV)0.0f, ab * (ambient_ao + db) + sb, fg);
+    floatV cr, cg, cb;
+    if (surface_extras) {            /* emission, occlusion, unlit (docs/materials.md) */
+        const SurfaceExtrasV x = decode_extras(load_plane(gbuffer + GB_EMISSIVE_PLANE * npix, p0, valid, 0u), tri, fg,
+                                               tri_material, materials, srgb_lut);
+        cr = select((floatV)0.0f, compose_extras(ar, ambient_ao, dr, sr, x.er, x.occlusion, x.unlit), fg);
+        cg = select((floatV)0.0f, compose_extras(ag, ambient_ao, dg, sg, x.eg, x.occlusion, x.unlit), fg);
+        cb = select((floatV)0.0f, compose_extras(ab, ambient_ao, db, sb, x.eb, x.occlusion, x.unlit), fg);
+    } else {
+        cr = select((floatV)0.0f, ar * (ambient_ao + dr) + sr, fg);
+        cg = select((floatV)0.0f, ag * (ambient_ao + dg) + sg, fg);
+        cb = select((floatV)0.0f, ab * (ambient_ao + db) + sb, fg);
+    }
     store_plane(color, p0, valid, cr);
     store_plane(color + npix, p0, valid, cg);
     store_plane(color + 2 * npix, p0, valid, cb);

@@ -19,6 +19,9 @@
  * nothing. Only IEEE +,-,*,/,sqrt (no trig, exp or rsqrt): with correctly rounded divide and
  * sqrt every conforming device computes the same bits.
  *
+ * ORTHO (orthographic camera): view rays are parallel, so P = (x·tan_x, y·tan_y, depth) and a
+ * point projects to the screen without the division by its depth (tan_x, tan_y: the view
+ * box's half-extents, world units).
  * Buffers: gbuffer uint[GB_PLANES][H·W]; camera float[16] = eye, F, R·tan_x, U·tan_y (float4
  *          each, world space); out: ao float[H·W] in [0, 1], 1 = unoccluded and on background.
  * Work-groups: (SSAO_WG_X, SSAO_WG_Y), each work-item a run of VEC pixels of one row (vec.h);
@@ -41,6 +44,9 @@
 #define SSAO_WG_Y 8
 #endif
 #define SSAO_DIRECTIONS 8
+#ifndef ORTHO
+#define ORTHO 0      /* 1: orthographic camera: parallel view rays, tan_x, tan_y are half-extents */
+#endif
 
 /* (cos, sin) of the per-pixel rotation, (i + 0.5)/16 of 45°, and of the 8 directions k·45°. */
 constant float2 SSAO_ROTATIONS[16] = {
@@ -106,8 +112,13 @@ void ssao(global const uint* gbuffer, int width, int height, float far, global c
 
         /* P on the pixel's view ray at its depth; pixel centre x maps to x·(2/W)·tan_x - tan_x. */
         const float kx = 2.0f * tan_x / (float)width, ky = 2.0f * tan_y / (float)height;
+#if ORTHO
+        floatV px_ = (convert_floatV(px0 + LANES) + 0.5f) * kx - tan_x;
+        floatV py_ = (floatV)(tan_y - ((float)py + 0.5f) * ky);
+#else
         floatV px_ = depth * ((convert_floatV(px0 + LANES) + 0.5f) * kx - tan_x);
         floatV py_ = depth * (tan_y - ((float)py + 0.5f) * ky);
+#endif
         floatV pz_ = depth;
 
         uintV h = ssao_hash(convert_uintV(px0 + LANES) | ((uint)py << 16));
@@ -127,9 +138,14 @@ void ssao(global const uint* gbuffer, int width, int height, float far, global c
             for (int j = 0; j < SSAO_STEPS; ++j) {
                 floatV dist = radius * (((float)j + jitter) * (1.0f / SSAO_STEPS));
                 floatV z = pz_ + dist * dz;
+#if ORTHO
+                floatV fxp = (px_ + dist * dx) * to_px_x + half_w;
+                floatV fyp = half_h - (py_ + dist * dy) * to_px_y;
+#else
                 floatV inv_z = 1.0f / z;
                 floatV fxp = (px_ + dist * dx) * inv_z * to_px_x + half_w;
                 floatV fyp = half_h - (py_ + dist * dy) * inv_z * to_px_y;
+#endif
                 intV inside = fg & (z > 0.0f) & (fxp >= 0.0f) & (fxp < (float)width)
                               & (fyp >= 0.0f) & (fyp < (float)height);
                 /* Out-of-range (or NaN) lanes read pixel 0 and are masked below. */
@@ -139,8 +155,13 @@ void ssao(global const uint* gbuffer, int width, int height, float far, global c
                 floatV dq = GATHER_F(depth_plane, iy * width + ix) * far;
                 inside &= isfinite(dq);
                 dq = select((floatV)0.0f, dq, inside);
+#if ORTHO
+                floatV hx = ((convert_floatV(ix) + 0.5f) * kx - tan_x) - px_;
+                floatV hy = (tan_y - (convert_floatV(iy) + 0.5f) * ky) - py_;
+#else
                 floatV hx = dq * ((convert_floatV(ix) + 0.5f) * kx - tan_x) - px_;
                 floatV hy = dq * (tan_y - (convert_floatV(iy) + 0.5f) * ky) - py_;
+#endif
                 floatV hz = dq - pz_;
                 floatV h2 = hx * hx + hy * hy + hz * hz;
                 floatV nh = nx * hx + ny * hy + nz * hz;

@@ -13,6 +13,9 @@
 #define MAT_DOUBLE_SIDED 1u
 #define MAT_MASK         2u
 #define MAT_BLEND        4u
+#define MAT_METALLIC_ROUGHNESS 8u   /* metallic/roughness mapped per pixel (docs/materials.md) */
+#define MAT_UNLIT        16u        /* KHR_materials_unlit: colour = base colour */
+#define MAT_SHARES(slot) (32u << ((slot) - 1))   /* slot 1..4 reads the base colour's footprint (material_eval.h) */
 
 /* Setup status per input triangle (a byte); STATUS_CLIPPED is or-ed in. */
 #define STATUS_EMITTED    0
@@ -38,26 +41,54 @@ typedef struct {
     long  area;       /* twice the signed area, 24.8 units squared */
 } Prim;
 
+/* Material.slots: the texture slots (clrender.scene.TEXTURE_SLOTS order) */
+#define SLOT_BASE      0
+#define SLOT_MR        1
+#define SLOT_NORMAL    2
+#define SLOT_OCCLUSION 3
+#define SLOT_EMISSIVE  4
+#define SLOT_COUNT     5
+
+/* Where a material's texture slot reads: uv' = (uv[0] u + uv[1] v + uv[2], uv[3] u + uv[4] v + uv[5])
+ * of vertex set `texcoord` (KHR_texture_transform, texCoord). */
 typedef struct {
-    float base_color[4];  /* linear RGBA factor */
+    float uv[6];
     int   texture;        /* index into TexInfo, -1 = none */
-    float spec_intensity;
+    int   texcoord;       /* vertex uv set */
+} TexSlot;
+
+typedef struct {
+    float base_color[4];  /* linear RGBA factor (opacity folded into alpha) */
+    float emissive[3];    /* linear factor in [0, 1] */
+    float emissive_strength;
+    float spec_intensity; /* Blinn-Phong terms (MAT_METALLIC_ROUGHNESS clear) */
     float spec_power;
+    float metallic;       /* metallic-roughness factors (MAT_METALLIC_ROUGHNESS set) */
+    float roughness;
+    float normal_scale;
+    float occlusion_strength;
     float alpha_cutoff;
     uint  flags;          /* MAT_* */
     float refraction;     /* BLEND: screen-space distortion strength of what lies behind (docs/transparency.md) */
-    int   pad[2];
+    int   pad[3];
+    TexSlot slots[SLOT_COUNT];
 } Material;
 
 #define WRAP_REPEAT 0
 #define WRAP_CLAMP  1
 #define WRAP_MIRROR 2
 
+/* Texel decode tables (the lut buffer): sRGB colour textures at 0, linear data textures at 256. */
+#define LUT_SRGB   0
+#define LUT_LINEAR 256
+
 typedef struct {
     int first_level;   /* index into TexLevel */
     int levels;
     int wrap_s;
     int wrap_t;
+    int lut;           /* LUT_SRGB or LUT_LINEAR: how the R, G, B bytes decode */
+    int pad[3];
 } TexInfo;
 
 typedef struct {

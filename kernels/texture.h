@@ -35,11 +35,11 @@ static inline int wrap_edge(int i, int size, int mode)
     return clamp(i, 0, size - 1);      /* clamp; mirror repeats the edge texel at the fold */
 }
 
-static inline float4 texel(global const uint* texels, constant float* srgb_lut, TexLevel lv, int x, int y)
+/* lut: the decode tables (structs.h LUT_*), offset by the texture's TexInfo.lut. */
+static inline float4 texel(global const uint* texels, constant float* lut, TexLevel lv, int x, int y)
 {
     uint v = texels[lv.offset + y * lv.width + x];
-    return (float4)(srgb_lut[v & 255u], srgb_lut[(v >> 8) & 255u], srgb_lut[(v >> 16) & 255u],
-                    (float)(v >> 24) * (1.0f / 255.0f));
+    return (float4)(lut[v & 255u], lut[(v >> 8) & 255u], lut[(v >> 16) & 255u], (float)(v >> 24) * (1.0f / 255.0f));
 }
 
 static float4 sample_bilinear(global const uint* texels, constant float* srgb_lut, TexLevel lv,
@@ -80,9 +80,10 @@ static float4 sample_trilinear(global const uint* texels, constant float* srgb_l
     int l0 = (int)lod;
     int l1 = min(l0 + 1, info.levels - 1);
     float f = lod - (float)l0;
-    float4 a = sample_bilinear(texels, srgb_lut, levels[info.first_level + l0], info.wrap_s, info.wrap_t, uv);
+    constant float* lut = srgb_lut + info.lut;
+    float4 a = sample_bilinear(texels, lut, levels[info.first_level + l0], info.wrap_s, info.wrap_t, uv);
     if (f == 0.0f) return a;
-    float4 b = sample_bilinear(texels, srgb_lut, levels[info.first_level + l1], info.wrap_s, info.wrap_t, uv);
+    float4 b = sample_bilinear(texels, lut, levels[info.first_level + l1], info.wrap_s, info.wrap_t, uv);
     return a + (b - a) * f;
 }
 #endif

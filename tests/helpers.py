@@ -1,4 +1,6 @@
-"""Assertions shared by several test modules."""
+"""Assertions and files shared by several test modules."""
+from pathlib import Path
+
 import pytest
 
 from clrender import load_scene
@@ -30,3 +32,14 @@ def record_render_configs(monkeypatch) -> list:
 
     monkeypatch.setattr(renderer_module, "Renderer", Recording)
     return seen
+
+
+SHARED_SCENES = Path(__file__).resolve().parents[2] / "shared" / "scenes"
+
+
+def shared_file(rel: str) -> Path:
+    """A file under ../shared/scenes, or skip the test with a clear message when it is absent."""
+    path = SHARED_SCENES / rel
+    if not path.is_file():
+        pytest.skip(f"shared test scene {path} is not available (needs ../shared/scenes next to the repo)")
+    return path

@@ -25,18 +25,10 @@ sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 from clrender.camera import Camera  # noqa: E402
 from clrender.loaders import load_scene  # noqa: E402
 from clrender.scene import Material, SceneError  # noqa: E402
-from helpers import assert_scene_error
+from helpers import assert_scene_error, shared_file
 
 REPO = Path(__file__).resolve().parents[1]
 SCENES = REPO / "scenes"
-SHARED = Path(__file__).resolve().parents[2] / "shared" / "scenes"
-
-
-def shared_file(rel: str) -> Path:
-    path = SHARED / rel
-    if not path.is_file():
-        pytest.skip(f"shared test scene {path} is not available (needs ../shared/scenes next to the repo)")
-    return path
 
 
 def make_demo_module():
@@ -246,12 +238,14 @@ def test_sponza_counts_normals_and_speed():
     assert len(scene.mesh_names) == 170
     assert sum(m.alpha_mode == "MASK" for m in scene.materials) == 3
     raw = RawGltf(path)
-    # 35 glTF textures: 24 base-color images (loaded) + 11 normal maps (Material has no slot for them)
+    # 35 glTF textures: 24 base-color images (sRGB) + 11 normal maps (linear), all loaded
     assert len(raw.j["textures"]) == 35
     base_color = {m["pbrMetallicRoughness"]["baseColorTexture"]["index"] for m in raw.j["materials"]}
-    assert len(scene.textures) == len(base_color) == 24
-    images = [raw.j["images"][raw.j["textures"][i]["source"]] for i in base_color]
-    assert {t.name for t in scene.textures} == {img.get("name") or img["uri"] for img in images}
+    normal = {m["normalTexture"]["index"] for m in raw.j["materials"] if "normalTexture" in m}
+    assert len(base_color) == 24 and len(normal) == 11 and len(scene.textures) == 35
+    for indices, srgb in ((base_color, True), (normal, False)):
+        images = [raw.j["images"][raw.j["textures"][i]["source"]] for i in indices]
+        assert {t.name for t in scene.textures if t.srgb == srgb} == {img.get("name") or img["uri"] for img in images}
     assert all(t.rgba.dtype == np.uint8 and t.rgba.shape[2] == 4 for t in scene.textures)
     check_against_raw(scene, raw)
     assert scene.camera is not None and scene.camera.far == pytest.approx(50.0)
@@ -301,7 +295,9 @@ def test_demo_gltf_round_trip():
     assert mats["LeafMask"].alpha_mode == "MASK" and mats["LeafMask"].alpha_cutoff == 0.5
     assert all(m.alpha_mode == "OPAQUE" for n, m in mats.items() if n != "LeafMask")
     assert mats["RedPlastic"].base_color == pytest.approx((0.8, 0.1, 0.08, 1.0))
-    assert mats["BlueMetal"].specular_intensity == pytest.approx(1.0)
+    # a full metal: no diffuse (docs/materials.md), specular = the luminance of its base colour
+    assert mats["BlueMetal"].metallic == 1.0
+    assert mats["BlueMetal"].specular_intensity == pytest.approx(0.2126 * 0.2 + 0.7152 * 0.3 + 0.0722 * 0.9)
     checker = scene.textures[mats["FloorChecker"].base_color_texture]
     leaf = scene.textures[mats["LeafMask"].base_color_texture]
     np.testing.assert_array_equal(checker.rgba, demo.checker_texture())
@@ -609,7 +605,8 @@ def test_gltf_glb_minimal(tmp_path):
 def test_metallic_roughness_mapping(tmp_path):
     # the mapping itself
     m = Material.from_metallic_roughness("m", (1, 1, 1, 1), metallic=0.25, roughness=0.5)
-    assert m.specular_intensity == pytest.approx(0.04 + 0.96 * 0.25)
+    assert m.specular_intensity == pytest.approx(0.04 + (1.0 - 0.04) * 0.25)    # mix(0.04, luminance 1, m)
+    assert (m.metallic, m.roughness) == (0.25, 0.5)
     assert m.specular_power == pytest.approx(2 / 0.25 ** 2 - 2)           # alpha = 0.25 -> 30
     # and what the loader passes it (defaults: metallic 1, roughness 1; doubleSided false)
     mats = [{"name": "a", "pbrMetallicRoughness": {"metallicFactor": 0.25, "roughnessFactor": 0.5,
@@ -621,7 +618,8 @@ def test_metallic_roughness_mapping(tmp_path):
              "pbrMetallicRoughness": {"roughnessFactor": 0.8}}]
     scene = load_scene(write_gltf(tmp_path / "m.gltf", materials=mats, prim_extra={"material": 2}))
     a, b, c, d = scene.materials
-    assert (a.specular_intensity, a.specular_power) == pytest.approx((0.28, 30.0))
+    lum = 0.2126 * 0.5 + 0.7152 * 0.25 + 0.0722 * 1.0                       # docs/materials.md
+    assert (a.specular_intensity, a.specular_power) == pytest.approx((0.04 * 0.75 + lum * 0.25, 30.0))
     assert a.base_color == pytest.approx((0.5, 0.25, 1, 0.75))
     assert (b.specular_intensity, b.specular_power, b.double_sided, b.alpha_mode) == (1.0, 1.0, False, "OPAQUE")
     assert (c.specular_intensity, c.specular_power) == pytest.approx((0.04, 2048.0))   # 19998 clamped
@@ -698,10 +696,14 @@ def test_gltf_camera_rules(tmp_path):
                               {"type": "perspective", "perspective": {"yfov": 1.0, "znear": 0.5}}]
             doc["nodes"] = [{"mesh": 0}, {"camera": 0, "translation": [0, 0, 5]},
                             {"translation": [0, 0, 20], "children": [3]}, {"camera": 1, "translation": [1, 0, 0]}]
-            doc["scenes"] = [{"nodes": [0, 1] + ([2] if kind == "both" else [])}]
+            doc["scenes"] = [{"nodes": {"ortho": [0, 1], "both": [0, 1, 2], "persp": [0, 2]}[kind]}]
         return edit
-    assert load_scene(write_gltf(tmp_path / "o.gltf", edit=cams("ortho"))).camera is None
-    cam = load_scene(write_gltf(tmp_path / "p.gltf", edit=cams("both"))).camera
+    # the first camera in traversal order, of either type
+    for kind in ("ortho", "both"):
+        ortho = load_scene(write_gltf(tmp_path / f"{kind}.gltf", edit=cams(kind))).camera
+        assert ortho.is_orthographic and (ortho.xmag, ortho.ymag, ortho.near, ortho.far) == (1, 1, 0.1, 9)
+        assert ortho.eye == pytest.approx((0, 0, 5)) and ortho.target == pytest.approx((0, 0, 4))
+    cam = load_scene(write_gltf(tmp_path / "p.gltf", edit=cams("persp"))).camera
     assert cam.eye == pytest.approx((1, 0, 20)) and cam.target == pytest.approx((1, 0, 19))
     assert cam.fov_y_deg == pytest.approx(math.degrees(1.0)) and cam.near == 0.5
     assert cam.far == pytest.approx(1000 * 0.5)          # zfar absent: max(1000 * znear, 2 * scene reach)

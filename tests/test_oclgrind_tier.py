@@ -64,6 +64,23 @@ def test_soup_with_near_clipping_matches_reference(device, capfd):
     assert_no_device_diagnostics(capfd)
 
 
+def test_orthographic_camera_kernels(device, capfd):
+    """An orthographic camera (docs/raster_contract.md §11): the ORTHO variants of setup (near
+    clipping), raster, G-buffer, light culling, SSAO and shading, with a shadowed sun, on one
+    tiny frame; triangle ids against the reference's orthographic path."""
+    scene = soup()
+    scene.add_point_light((0.3, 0.2, -2.0), (2.0, 1.5, 1.0), 2.5)
+    scene.set_sun((0.3, -0.2, -1.0), (1.0, 1.0, 1.0), shadow_map_size=16)
+    cam = Camera.orthographic((0, 0, 0), (0, 0, -1), xmag=1.5, ymag=1.0, near=0.1, far=50)
+    frame = clrender.Renderer(19, 13, device=device.id, tile_size=8, light_tile_size=8, sun_cascades=1,
+                              ssao=True).render(scene, cam)
+    ids, _, _ = rasterize(scene, cam, 19, 13)
+    np.testing.assert_array_equal(frame.triangle_id, ids)
+    assert frame.stats["clipped"] > 0 and (ids >= 0).mean() > 0.5
+    assert np.isfinite(frame.color).all() and frame.color.max() > 0.1 and frame.ao.min() >= 0.0
+    assert_no_device_diagnostics(capfd)
+
+
 def test_alpha_mask_and_resolve(device, capfd):
     scene = masked_quad_scene()
     cam = Camera.look_at((0, 0, 0), (0, 0, -1), fov_y_deg=60, near=0.1, far=50)
@@ -438,4 +455,68 @@ def test_pipeline_variant_kernels(device, capfd):
     np.testing.assert_array_equal(msaa.gbuffer, deferred.gbuffer)
     changed = np.abs(msaa.color - deferred.color).max(-1) > 1e-5 * peak
     assert 0 < changed.mean() < 0.5, "only edge pixels change"
+    assert_no_device_diagnostics(capfd)
+
+
+def test_material_feature_kernels(device, capfd):
+    """The glTF material paths of the resolve (material_eval.h) and the shading (emission,
+    occlusion, unlit; gbuffer_decode.h) on a 12x12 frame: a quad with constant metallic-roughness,
+    normal, occlusion and emissive textures read through a texture transform and TEXCOORD_1, with
+    vertex colours, next to an unlit quad; deferred and light-indexed give the same bits, and the
+    decoded G-buffer equals the documented mapping (docs/materials.md) of the constant texels."""
+    from clrender.scene import UVTransform, metallic_roughness_to_blinn_phong
+
+    def const(rgba, srgb):
+        return Texture("c", np.broadcast_to(np.asarray(rgba, np.uint8), (2, 2, 4)).copy(), srgb=srgb)
+
+    quads = np.array([[-1, -1, -3], [0, -1, -3], [0, 1, -3], [-1, 1, -3],
+                      [0, -1, -3], [1, -1, -3], [1, 1, -3], [0, 1, -3]], np.float32)
+    uvs = np.array([[0, 1], [1, 1], [1, 0], [0, 0]] * 2, np.float32)
+    tris = np.array([[0, 1, 2], [0, 2, 3], [4, 5, 6], [4, 6, 7]], np.int32)
+    shifted = UVTransform(texcoord=1, offset=(0.25, 0.5), rotation=0.3, scale=(2.0, 0.5))
+    lit = Material("pbr", (0.9, 0.8, 0.7, 1.0), metallic=0.8, roughness=0.9, metallic_roughness_texture=0,
+                   normal_texture=1, occlusion_texture=2, occlusion_strength=0.5, emissive=(0.2, 0.4, 0.6),
+                   emissive_texture=3, emissive_strength=3.0, metallic_roughness_uv=shifted, normal_uv=shifted)
+    unlit = Material("unlit", (0.3, 0.6, 0.9, 1.0), unlit=True)
+    textures = [const((0, 128, 255, 255), False), const((128, 128, 255, 255), False),
+                const((51, 0, 0, 255), False), const((255, 255, 255, 255), True)]
+    scene = Scene(quads, np.tile([[0, 0, 1]], (8, 1)), uvs, tris, np.array([0, 0, 1, 1], np.int32),
+                  materials=[lit, unlit], textures=textures, colors=np.tile([[1.0, 0.5, 1.0, 1.0]], (8, 1)),
+                  extra_uvs=uvs[None] * 0.5)
+    scene.add_point_light((0.0, 0.0, -1.0), (2.0, 2.0, 2.0), 5.0)
+    cam = Camera.look_at((0, 0, 0), (0, 0, -1), fov_y_deg=60, near=0.1, far=50)
+    opts = dict(device=device.id, tile_size=8, light_tile_size=8)
+    deferred = clrender.Renderer(12, 12, **opts).render(scene, cam)
+    indexed = clrender.Renderer(12, 12, pipeline="light_indexed", **opts).render(scene, cam)
+    np.testing.assert_array_equal(deferred.gbuffer, indexed.gbuffer)
+    np.testing.assert_array_equal(deferred.color, indexed.color)
+
+    ids = deferred.triangle_id
+    pbr, flat = np.isin(ids, (0, 1)), np.isin(ids, (2, 3))
+    assert pbr.sum() > 12 and flat.sum() > 12
+    m, r = 0.8 * 1.0, 0.9 * 128 / 255
+    base = np.array([0.9, 0.4, 0.7])
+    si, sp = metallic_roughness_to_blinn_phong(base, m, r)
+    np.testing.assert_allclose(deferred.albedo[pbr], np.broadcast_to(base * (1 - m), (pbr.sum(), 3)), atol=4e-3)
+    np.testing.assert_allclose(deferred.specular_intensity[pbr], si, atol=1 / 255)
+    np.testing.assert_allclose(np.log2(deferred.specular_power[pbr]), np.log2(sp), atol=11 / 255)
+    # texel 128 encodes 2·128/255 - 1 = 0.004 along T and B
+    np.testing.assert_allclose(deferred.normal[pbr], np.broadcast_to((0, 0, 1), (pbr.sum(), 3)), atol=6e-3)
+    np.testing.assert_allclose(deferred.occlusion[pbr], 1 + 0.5 * (51 / 255 - 1), atol=1 / 255)
+    np.testing.assert_allclose(deferred.emissive[pbr], np.broadcast_to((0.2, 0.4, 0.6), (pbr.sum(), 3)), atol=4e-3)
+    # unlit: base colour × vertex colour (1, 0.5, 1), no light
+    np.testing.assert_allclose(deferred.color[flat], np.broadcast_to((0.3, 0.3, 0.9), (flat.sum(), 3)), atol=4e-3)
+    assert (deferred.color[pbr] >= 3.0 * deferred.emissive[pbr] - 1e-5).all()
+
+    # The same slots read through a white base colour texture's footprint (sample_slot_shared), the
+    # occlusion and metallic-roughness images merged into one ORM texture by the upload: same planes.
+    from dataclasses import replace
+    scene.textures = textures + [const((255, 255, 255, 255), True)]
+    scene.materials = [replace(lit, base_color_texture=4, metallic_roughness_uv=UVTransform(),
+                               normal_uv=UVTransform()), unlit]
+    from clrender.scene_gpu import device_materials
+    flags = device_materials(scene)[1]["flags"][0]
+    assert flags & (15 << 5) == 15 << 5, "every slot must share the base colour's footprint"
+    shared = clrender.Renderer(12, 12, **opts).render(scene, cam)
+    np.testing.assert_array_equal(shared.gbuffer, deferred.gbuffer)
     assert_no_device_diagnostics(capfd)

@@ -130,7 +130,7 @@ def test_memory_check_counts_the_internal_size(device, monkeypatch):
         clrender.Renderer(1200, 1200, device=device.id, supersample=4)
     internal = memory.estimate(640, 400, clrender.RenderConfig())["total"]
     ss2 = memory.estimate(320, 200, clrender.RenderConfig(supersample=2))["total"]
-    assert ss2 == internal + 12 * 320 * 400 + (12 + 20) * 320 * 200     # + the resolve's rows, colour, G-buffer
+    assert ss2 == internal + 12 * 320 * 400 + (12 + 24) * 320 * 200     # + the resolve's rows, colour, G-buffer
 
 
 @pytest.mark.parametrize("bad", [0, 5, 2.0, True, "2"])

@@ -181,8 +181,8 @@ def test_bytes_per_pixel_stats(make_renderer):
         ("deferred", {}), ("indexed", dict(pipeline="light_indexed")),
         ("prepass", dict(pipeline="light_prepass", light_buffer_specular="luminance")),
         ("msaa4", dict(pipeline="light_prepass", msaa=4)))}
-    assert bpp["deferred"]["gbuffer_geometry_pass"] == 20 and bpp["deferred"]["gbuffer_aov_planes"] == 0
-    assert bpp["indexed"]["gbuffer_geometry_pass"] == 8 and bpp["indexed"]["gbuffer_aov_planes"] == 12
+    assert bpp["deferred"]["gbuffer_geometry_pass"] == 24 and bpp["deferred"]["gbuffer_aov_planes"] == 0
+    assert bpp["indexed"]["gbuffer_geometry_pass"] == 8 and bpp["indexed"]["gbuffer_aov_planes"] == 16
     assert bpp["prepass"]["gbuffer_geometry_pass"] == 16 and bpp["prepass"]["light_buffer"] == 16
     assert bpp["msaa4"]["msaa_visibility"] == 32 and bpp["msaa4"]["msaa_resolve"] == 12
     for b in bpp.values():

@@ -9,18 +9,23 @@ from __future__ import annotations
 import io
 import os
 from concurrent.futures import ThreadPoolExecutor
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Callable, Optional, Sequence
 
 import numpy as np
 
 from ..camera import Camera
-from ..scene import Material, Scene, SceneError, Texture, vertex_normals
+from ..scene import TEXTURE_SLOTS, Material, Scene, SceneError, Texture, vertex_normals
+from ..tangents import generate_tangents
 
-__all__ = ["SceneError", "Piece", "fail", "transform_points", "transform_normals", "world_piece",
-           "assemble", "image_to_rgba", "decode_image", "load_images", "check_faces",
-           "trimesh_load", "flip_v"]
+__all__ = ["SceneError", "Piece", "fail", "transform_points", "transform_normals", "transform_tangents",
+           "world_piece", "assemble", "image_to_rgba", "decode_image", "load_images", "check_faces",
+           "trimesh_load", "flip_v", "shift_textures", "concat_vertex_attributes", "NO_TANGENT"]
+
+# The tangent of a vertex that has none (no TANGENT, no normal map): zero xyz, which the G-buffer
+# resolve treats as "no tangent frame" (the normal map is not applied there); w = +1.
+NO_TANGENT = (0.0, 0.0, 0.0, 1.0)
 
 
 def fail(path, message: str) -> SceneError:
@@ -37,6 +42,11 @@ class Piece:
     material: int                         # index into the loader's material list
     normals: Optional[np.ndarray] = None  # (V, 3) world space unit normals; None = compute
     uvs: Optional[np.ndarray] = None      # (V, 2) glTF convention; None = zeros
+    colors: Optional[np.ndarray] = None   # (V, 4) linear RGBA; None = white (ones)
+    tangents: Optional[np.ndarray] = None  # (V, 4) world space unit xyz + w = ±1; None = see below
+    extra_uvs: Optional[list] = None      # [(V, 2) or None] = TEXCOORD_1, TEXCOORD_2, ...; None = zeros
+    tangent_uv: Optional[int] = None      # tangents None: generate them from this uv set (0 = uvs,
+                                          # k = extra_uvs[k - 1]); None: NO_TANGENT (no normal map)
 
 
 # -- transforms ---------------------------------------------------------------------------------
@@ -68,11 +78,30 @@ def transform_normals(matrix: np.ndarray, normals: np.ndarray) -> np.ndarray:
     return n
 
 
-def world_piece(name: str, matrix, positions, faces, material: int, normals=None, uvs=None) -> Piece:
+def transform_tangents(matrix: np.ndarray, tangents: Optional[np.ndarray]) -> Optional[np.ndarray]:
+    """(V, 4) tangents through a 4x4 affine matrix: xyz by its linear 3x3 part (tangents are surface
+    directions), renormalized (zero ones stay zero); w times the sign of its determinant (a mirror
+    flips the handedness). None stays None."""
+    if tangents is None:
+        return None
+    t = np.asarray(tangents, np.float64).reshape(-1, 4)
+    a = np.asarray(matrix, np.float64)[:3, :3]
+    xyz = t[:, :3] @ a.T
+    length = np.linalg.norm(xyz, axis=1, keepdims=True)
+    ok = np.isfinite(length[:, 0]) & (length[:, 0] > 0)
+    xyz[ok] /= length[ok]
+    xyz[~ok] = 0.0
+    w = t[:, 3] * (-1.0 if np.linalg.det(a) < 0 else 1.0)
+    return np.concatenate([xyz, w[:, None]], 1)
+
+
+def world_piece(name: str, matrix, positions, faces, material: int, normals=None, uvs=None,
+                colors=None, tangents=None, extra_uvs=None, tangent_uv=None) -> Piece:
     """Build a Piece from local-space arrays and a local->world matrix.
 
     A mirroring transform (negative determinant) reverses the triangle winding so that the
     front face stays the front face (glTF 2.0 spec, "Transformations"); the face order is kept.
+    Tangents follow `transform_tangents`; colors and uvs are not transformed.
     """
     matrix = np.asarray(matrix, np.float64)
     faces = np.asarray(faces, np.int64).reshape(-1, 3)
@@ -80,16 +109,27 @@ def world_piece(name: str, matrix, positions, faces, material: int, normals=None
         faces = faces[:, [0, 2, 1]]
     world = transform_points(matrix, positions)
     wn = None if normals is None else transform_normals(matrix, normals)
-    return Piece(name, world, faces, int(material), wn, uvs)
+    return Piece(name, world, faces, int(material), wn, uvs, colors, transform_tangents(matrix, tangents),
+                 extra_uvs, tangent_uv)
 
 
 # -- assembling ----------------------------------------------------------------------------------
 def assemble(pieces: Sequence[Piece], materials: list[Material], textures: list[Texture],
              source: str, camera: Optional[Camera] = None, settings: Optional[dict] = None) -> Scene:
-    """Concatenate pieces (in order) into one Scene; normals are computed where a piece has none."""
+    """Concatenate pieces (in order) into one Scene; normals are computed where a piece has none.
+
+    Per-vertex extras (docs/materials.md): `Scene.colors` is None when no piece has colours, else
+    pieces without get white (1, 1, 1, 1). `Scene.extra_uvs` has K sets, K = the most any piece
+    has; a set a piece lacks is zeros. `Scene.tangents` is None when no piece has tangents or asks
+    for generated ones (`tangent_uv`); else a piece's own, or `generate_tangents` from its
+    world-space positions, normals and uv set `tangent_uv`, or NO_TANGENT (0, 0, 0, 1)."""
     if not materials:
         materials = [Material()]
     positions, normals, uvs, triangles, tri_mat, tri_mesh, tri_face = [], [], [], [], [], [], []
+    colors, tangents, extras = [], [], []
+    want_colors = any(p.colors is not None for p in pieces)
+    want_tangents = any(p.tangents is not None or p.tangent_uv is not None for p in pieces)
+    k_sets = max((len(p.extra_uvs) for p in pieces if p.extra_uvs), default=0)
     names = []
     offset = 0
     for k, piece in enumerate(pieces):
@@ -105,6 +145,29 @@ def assemble(pieces: Sequence[Piece], materials: list[Material], textures: list[
         uv = np.zeros((nv, 2), np.float32) if piece.uvs is None else np.asarray(piece.uvs).reshape(-1, 2)
         if len(nrm) != nv or len(uv) != nv:
             raise fail(source, f"mesh {piece.name!r}: normals/uvs do not have one entry per vertex ({nv})")
+        sets = [None if piece.extra_uvs is None or j >= len(piece.extra_uvs) else piece.extra_uvs[j]
+                for j in range(k_sets)]
+        sets = [np.zeros((nv, 2), np.float32) if a is None else np.asarray(a, np.float32).reshape(-1, 2)
+                for a in sets]
+        if want_colors:
+            col = np.ones((nv, 4), np.float32) if piece.colors is None else \
+                np.asarray(piece.colors, np.float32).reshape(-1, 4)
+            colors.append(col)
+        if want_tangents:
+            if piece.tangents is not None:
+                tan = np.asarray(piece.tangents, np.float32).reshape(-1, 4)
+            elif piece.tangent_uv is not None:
+                s = piece.tangent_uv
+                if not 0 <= s <= len(sets):
+                    raise fail(source, f"mesh {piece.name!r}: no uv set {s} to generate tangents from")
+                tan = generate_tangents(pos, nrm, uv if s == 0 else sets[s - 1], faces)
+            else:
+                tan = np.tile(np.float32(NO_TANGENT), (nv, 1))
+            tangents.append(tan)
+        if any(len(a) != nv for a in sets + colors[-1:] + tangents[-1:]):
+            raise fail(source, f"mesh {piece.name!r}: colors/tangents/uv sets do not have one entry per "
+                               f"vertex ({nv})")
+        extras.append(sets)
         positions.append(pos.astype(np.float32))
         normals.append(nrm.astype(np.float32))
         uvs.append(uv.astype(np.float32))
@@ -120,6 +183,8 @@ def assemble(pieces: Sequence[Piece], materials: list[Material], textures: list[
     def cat(parts, shape, dtype):
         return np.concatenate(parts).astype(dtype) if parts else np.zeros(shape, dtype)
 
+    extra_uvs = np.stack([cat([e[k] for e in extras], (0, 2), np.float32) for k in range(k_sets)]) \
+        if k_sets else None
     return Scene(
         positions=cat(positions, (0, 3), np.float32),
         normals=cat(normals, (0, 3), np.float32),
@@ -134,7 +199,41 @@ def assemble(pieces: Sequence[Piece], materials: list[Material], textures: list[
         camera=camera,
         source=str(source),
         settings=dict(settings or {}),
+        colors=cat(colors, (0, 4), np.float32) if want_colors else None,
+        tangents=cat(tangents, (0, 4), np.float32) if want_tangents else None,
+        extra_uvs=extra_uvs,
     )
+
+
+# -- combining scenes (TOML) -------------------------------------------------------------------------
+def shift_textures(material: Material, offset: int) -> Material:
+    """`material` with every texture slot's index moved by `offset` (-1, no texture, stays -1)."""
+    kw = {f"{s}_texture": getattr(material, f"{s}_texture") + offset for s in TEXTURE_SLOTS
+          if getattr(material, f"{s}_texture") >= 0}
+    return replace(material, **kw) if kw and offset else material
+
+
+def concat_vertex_attributes(scenes: Sequence[Scene]) -> dict:
+    """{colors, tangents, extra_uvs} of the scenes' vertices concatenated in order, with the
+    defaults of `assemble` where a scene has none (white, NO_TANGENT, zero uv sets); each None
+    when no scene has it. Keyword arguments for `Scene(...)`."""
+    sizes = [len(s.positions) for s in scenes]
+
+    def per_vertex(name, fill):
+        if all(getattr(s, name) is None for s in scenes):
+            return None
+        parts = [np.tile(np.float32(fill), (n, 1)) if getattr(s, name) is None else getattr(s, name)
+                 for s, n in zip(scenes, sizes)]
+        return np.concatenate(parts).astype(np.float32) if parts else None
+
+    k_sets = max((len(s.extra_uvs) for s in scenes if s.extra_uvs is not None), default=0)
+    extra = None
+    if k_sets:
+        extra = np.stack([np.concatenate([
+            s.extra_uvs[k] if s.extra_uvs is not None and k < len(s.extra_uvs) else np.zeros((n, 2), np.float32)
+            for s, n in zip(scenes, sizes)]).astype(np.float32) for k in range(k_sets)])
+    return {"colors": per_vertex("colors", (1.0, 1.0, 1.0, 1.0)),
+            "tangents": per_vertex("tangents", NO_TANGENT), "extra_uvs": extra}
 
 
 def check_faces(faces: np.ndarray, vertex_count: int, where, what: str) -> None:

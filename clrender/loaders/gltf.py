@@ -19,7 +19,28 @@ Everything trimesh gets wrong or loses is read from the glTF JSON and buffers di
   exactly, and drops uvs of primitives without a material), so `Scene.uvs` equals the file data;
 * NORMAL comes from trimesh's cache of the file normals (process=False: no merging, no
   recomputation); primitives without NORMAL get area-weighted normals in world space;
-* the camera is the first perspective camera in traversal order (orthographic ones are skipped);
+* materials (docs/materials.md): every glTF 2.0 property, KHR_materials_emissive_strength and
+  KHR_materials_unlit into `Material`; every textureInfo's texCoord and KHR_texture_transform
+  (whose texCoord overrides) into `<slot>_uv`. One `Texture` per (image, wrapS, wrapT, sRGB): base
+  colour and emissive images are sRGB, metallic-roughness, normal and occlusion ones linear, so an
+  image used both ways is two textures. A texture must read a TEXCOORD set its primitive has
+  (SceneError naming the primitive, material, slot and set, as the glTF validator's error);
+* COLOR_0 (VEC3 gets alpha 1; normalized integers in [0, 1]) -> `Scene.colors`, white for
+  primitives without it, None when no primitive has it. TEXCOORD_n, n >= 1 -> `Scene.extra_uvs`
+  (K = the highest set any primitive has; a set a primitive lacks is zeros);
+* TANGENT -> `Scene.tangents` in world space (xyz by the node's 3x3, renormalized; w times the
+  sign of its determinant); ignored without NORMAL (spec). A primitive whose material has a
+  normalTexture and no TANGENT gets `clrender.tangents.generate_tangents` of its world-space
+  positions and normals and of the uv set the normal map reads; other primitives (0, 0, 0, 1)
+  ("no tangent"); None when no primitive has or needs tangents;
+* what is not rendered -- skins, morph targets, animations, point/line/fan primitives, COLOR_n for
+  n >= 1, non-default scenes, nearest magnification, any extension outside
+  `gltf_document.SUPPORTED_EXTENSIONS` (in extensionsUsed or on any object) -- is collected while
+  loading and warned ONCE per file and feature at the end; the rest loads. An extension outside
+  that set in extensionsRequired is a SceneError naming it;
+* the camera is the first camera in traversal order, perspective (`yfov`, `znear`, `zfar`) or
+  orthographic (`xmag`, `ymag`, `znear`, `zfar` -> `Camera.orthographic`: like glTF viewers, the
+  image's aspect decides the horizontal extent, ymag·width/height; xmag is kept);
 * `KHR_lights_punctual`: every node of the default scene that references a light adds one light,
   in traversal order, placed by the node's world matrix (computed here from the JSON
   matrix / TRS): position = the transformed origin, direction = the transformed local -Z,
@@ -41,16 +62,15 @@ import re
 import warnings
 from pathlib import Path
 from typing import Optional
-from urllib.parse import unquote
 
 import numpy as np
 
 from ..camera import Camera
-from ..scene import Material, Scene, SceneError, Texture
-from .common import (Piece, assemble, check_faces, decode_image, load_images, trimesh_load,
-                     trimesh_vertex_normals, world_piece)
-from .gltf_document import (MODE_FAN, MODE_STRIP, MODE_TRIANGLES, WRAP_MODES, Document, data_uri,
-                            load_document, node_light, punctual_lights, texture_source)
+from ..scene import Material, Scene, SceneError
+from .common import Piece, assemble, check_faces, trimesh_load, trimesh_vertex_normals, world_piece
+from .gltf_document import (MODE_FAN, MODE_STRIP, MODE_TRIANGLES, SUPPORTED_EXTENSIONS, Document, attribute_sets,
+                            extensions_in_use, load_document, node_light, punctual_lights)
+from .gltf_materials import load_materials
 from .lights import (AUTO_RADIUS_KEY, DIRECTIONAL_KEY, auto_radius, scene_diagonal, sun_from_directional,
                      warn_directional)
 
@@ -125,88 +145,6 @@ def _primitive_names(doc: Document) -> dict[tuple[int, int], str]:
     return out
 
 
-# -- materials and textures -----------------------------------------------------------------------------
-# glTF 2.0 material properties (a misspelt one would otherwise silently give the default material)
-MATERIAL_KEYS = {"name", "extensions", "extras", "pbrMetallicRoughness", "normalTexture", "occlusionTexture",
-                 "emissiveTexture", "emissiveFactor", "alphaMode", "alphaCutoff", "doubleSided"}
-PBR_KEYS = {"baseColorFactor", "baseColorTexture", "metallicFactor", "roughnessFactor", "metallicRoughnessTexture",
-            "extensions", "extras"}
-
-
-def _materials(doc: Document) -> tuple[list[Material], list[Texture]]:
-    images = doc.list("images")
-    textures_json = doc.list("textures")
-    samplers = doc.list("samplers")
-    slots: dict[tuple, int] = {}
-    jobs, names, wraps = [], [], []
-    materials = []
-    for m, mat in enumerate(doc.list("materials")):
-        name = mat.get("name") or f"material{m}"
-        pbr = mat.get("pbrMetallicRoughness", {}) or {}
-        unknown = [f"'{k}'" for k in mat if k not in MATERIAL_KEYS]
-        unknown += [f"'pbrMetallicRoughness.{k}'" for k in (pbr if isinstance(pbr, dict) else {}) if k not in PBR_KEYS]
-        if unknown:
-            warnings.warn(f"{doc.path}: material {m} ({name!r}): unknown properties ignored: {', '.join(unknown)}",
-                          stacklevel=3)
-        color = pbr.get("baseColorFactor", [1.0, 1.0, 1.0, 1.0])
-        if len(color) != 4:
-            raise doc.err(f"material {m} ({name!r}): baseColorFactor needs 4 numbers")
-        tex_index = -1
-        info = pbr.get("baseColorTexture")
-        if info is not None:
-            if info.get("texCoord", 0) != 0:
-                warnings.warn(f"{doc.path}: material {name!r} uses TEXCOORD_{info['texCoord']} for its base "
-                              f"color; only TEXCOORD_0 is loaded", stacklevel=3)
-            if "KHR_texture_transform" in (info.get("extensions") or {}):
-                warnings.warn(f"{doc.path}: material {name!r}: KHR_texture_transform is ignored", stacklevel=3)
-            tex = textures_json[info["index"]]
-            src = texture_source(tex)
-            if src is not None:
-                sampler = samplers[tex["sampler"]] if "sampler" in tex else {}
-                key = (src, WRAP_MODES[sampler.get("wrapS", 10497)], WRAP_MODES[sampler.get("wrapT", 10497)])
-                if key not in slots:
-                    slots[key] = len(jobs)
-                    jobs.append(_image_job(doc, src, images[src]))
-                    names.append(_image_name(images[src], src))
-                    wraps.append(key[1:])
-                tex_index = slots[key]
-        materials.append(Material.from_metallic_roughness(
-            name, color, pbr.get("metallicFactor", 1.0), pbr.get("roughnessFactor", 1.0),
-            base_color_texture=tex_index,
-            double_sided=bool(mat.get("doubleSided", False)),
-            alpha_mode=mat.get("alphaMode", "OPAQUE"),
-            alpha_cutoff=float(mat.get("alphaCutoff", 0.5))))
-    pixels = load_images(jobs)
-    textures = [Texture(n, rgba, ws, wt, srgb=True) for n, rgba, (ws, wt) in zip(names, pixels, wraps)]
-    return materials, textures
-
-
-def _image_name(img: dict, index: int) -> str:
-    if img.get("name"):
-        return str(img["name"])
-    uri = img.get("uri", "")
-    if uri and not uri.startswith("data:"):
-        return unquote(uri).replace("\\", "/").rsplit("/", 1)[-1]
-    return f"image{index}"
-
-
-def _image_job(doc: Document, index: int, img: dict):
-    where = f"{doc.path}: image {index}"
-    if "bufferView" in img:
-        data = bytes(doc.view_bytes(img["bufferView"]))
-        return lambda: decode_image(data, where)
-    uri = img.get("uri")
-    if not uri:
-        raise doc.err(f"image {index} has neither a uri nor a bufferView")
-    if uri.startswith("data:"):
-        data = data_uri(doc, uri, f"image {index}")
-        return lambda: decode_image(data, where)
-    file = doc.base / unquote(uri)
-    if not file.is_file():
-        raise doc.err(f"texture file not found: {file} (image {index})")
-    return lambda: decode_image(file, where)
-
-
 # -- camera ------------------------------------------------------------------------------------------------
 def _camera(doc: Document, order: list[int], tm_scene, scene: Scene) -> Optional[Camera]:
     nodes = doc.list("nodes")
@@ -214,15 +152,20 @@ def _camera(doc: Document, order: list[int], tm_scene, scene: Scene) -> Optional
         if "camera" not in nodes[n]:
             continue
         cam = doc.json["cameras"][nodes[n]["camera"]]
-        if cam.get("type") != "perspective" or "perspective" not in cam:
-            continue  # orthographic cameras are ignored
-        persp = cam["perspective"]
+        kind = cam.get("type")
+        if kind not in ("perspective", "orthographic") or kind not in cam:
+            continue  # not a camera this loader knows
+        persp = cam[kind]
         try:
             matrix = np.asarray(tm_scene.graph[f"n{n}"][0], np.float64)
             eye = matrix[:3, 3]
             forward = -matrix[:3, 2]
             up = matrix[:3, 1]
             norm = np.linalg.norm(forward)
+            if kind == "orthographic":
+                return Camera.orthographic(eye, eye + forward / norm, up, xmag=float(persp["xmag"]),
+                                           ymag=float(persp["ymag"]), near=float(persp["znear"]),
+                                           far=float(persp["zfar"]))
             znear = float(persp["znear"])
             zfar = persp.get("zfar")
             if zfar is None:
@@ -321,6 +264,61 @@ def _lights(doc: Document, order: list[int], scene: Scene) -> None:
         warn_directional(doc.path, len(directional), stacklevel=5)
 
 
+# -- vertex attributes and unsupported features ------------------------------------------------------------
+def _colors(doc: Document, what: str, attrs: dict) -> Optional[np.ndarray]:
+    """COLOR_0 as (V, 4) float32 linear RGBA (normalized integers are in [0, 1]; VEC3 gets alpha 1)."""
+    if "COLOR_0" not in attrs:
+        return None
+    c = doc.accessor(attrs["COLOR_0"]).astype(np.float32)
+    if not np.isfinite(c).all():
+        raise doc.err(f"{what}: attribute COLOR_0 (accessor {attrs['COLOR_0']}) has non-finite values")
+    if c.shape[1] == 3:
+        c = np.concatenate([c, np.ones((len(c), 1), np.float32)], 1)
+    return c
+
+
+def _tangents(doc: Document, what: str, attrs: dict) -> Optional[np.ndarray]:
+    """TANGENT as (V, 4) float64 in the mesh's local space, w snapped to ±1 (0 counts as +1)."""
+    if "TANGENT" not in attrs:
+        return None
+    t = doc.accessor(attrs["TANGENT"]).astype(np.float64)
+    if not np.isfinite(t).all():
+        raise doc.err(f"{what}: attribute TANGENT (accessor {attrs['TANGENT']}) has non-finite values")
+    t[:, 3] = np.where(t[:, 3] < 0, -1.0, 1.0)
+    return t
+
+
+def _unsupported_features(doc: Document) -> dict[str, str]:
+    """{feature: what clrender does instead} for what the document uses and clrender does not render.
+    Other entries are added while loading; `_warn_features` reports each once."""
+    j = doc.json
+    features: dict[str, str] = {}
+    prims = [prim for mesh in doc.list("meshes") for prim in mesh.get("primitives", [])]
+    attrs = {a for prim in prims for a in prim.get("attributes", {})}
+    if doc.list("skins") or any("skin" in node for node in doc.list("nodes")) or \
+            any(a.startswith(("JOINTS_", "WEIGHTS_")) for a in attrs):
+        features["skins (skinned meshes)"] = "drawn unskinned, with their nodes' transforms"
+    if any("targets" in prim for prim in prims) or any("weights" in mesh for mesh in doc.list("meshes")):
+        features["morph targets"] = "drawn with their base geometry"
+    if doc.list("animations"):
+        features["animations"] = "drawn at the nodes' static transforms"
+    extra_colors = sorted(a for a in attrs if a.startswith("COLOR_") and a != "COLOR_0")
+    if extra_colors:
+        features[f"vertex colour sets beyond COLOR_0 ({', '.join(extra_colors)})"] = "ignored"
+    if len(doc.list("scenes")) > 1:
+        features["scenes other than the default one"] = f"not loaded (scene {j.get('scene', 0)} is)"
+    for name, where in extensions_in_use(doc).items():
+        if name not in SUPPORTED_EXTENSIONS:
+            features[f"extension {name}"] = f"ignored (first used in {where})"
+    return features
+
+
+def _warn_features(doc: Document, features: dict[str, str]) -> None:
+    """One UserWarning per unsupported feature, naming the file and the feature."""
+    for feature, instead in features.items():
+        warnings.warn(f"{doc.path}: glTF {feature} not supported: {instead}", stacklevel=4)
+
+
 def _needs_own_reader(accessor: dict) -> bool:
     """trimesh ignores sparse data and the `normalized` flag: read those accessors ourselves."""
     return "sparse" in accessor or accessor.get("componentType") != 5126
@@ -331,7 +329,8 @@ def load_gltf(path) -> Scene:
     path = Path(path)
     doc = load_document(path)
     order = _traversal(doc)
-    materials, textures = _materials(doc)
+    features = _unsupported_features(doc)      # {feature: what happens instead}, warned once each at the end
+    materials, textures = load_materials(doc, features)
 
     tm_scene = _trimesh_scene(doc)
     prim_names = _primitive_names(doc)
@@ -363,8 +362,10 @@ def load_gltf(path) -> Scene:
             what = f"mesh {mi} ({mesh_name!r}) primitive {p}"
             if mode not in (MODE_TRIANGLES, MODE_STRIP):
                 if mode == MODE_FAN:  # trimesh does not read fans
-                    warnings.warn(f"{path}: {what}: TRIANGLE_FAN primitives are not loaded", stacklevel=2)
-                continue  # points and lines are not rendered
+                    features.setdefault("TRIANGLE_FAN primitives", f"not loaded (first: {what})")
+                else:
+                    features.setdefault("point and line primitives", f"not drawn (first: {what})")
+                continue
             gnode = instances.get((n, prim_names[(mi, p)]))
             if gnode is None:
                 raise doc.err(f"internal: trimesh lost node {n} {what}")
@@ -386,6 +387,12 @@ def load_gltf(path) -> Scene:
                 if normals is None or _needs_own_reader(accessors[attrs["NORMAL"]]):
                     normals = doc.accessor(attrs["NORMAL"]).astype(np.float64)
             uvs = doc.accessor(attrs["TEXCOORD_0"]) if "TEXCOORD_0" in attrs else None
+            sets = [k for k in attribute_sets(attrs, "TEXCOORD") if k > 0]
+            extra_uvs = [doc.accessor(attrs[f"TEXCOORD_{k}"]) if f"TEXCOORD_{k}" in attrs else None
+                         for k in range(1, max(sets) + 1)] if sets else None
+            colors = _colors(doc, what, attrs)
+            # spec: without NORMAL the TANGENT attribute MUST be ignored
+            tangents = _tangents(doc, what, attrs) if "NORMAL" in attrs else None
             if "material" in prim:
                 mat = prim["material"]
             else:
@@ -395,9 +402,14 @@ def load_gltf(path) -> Scene:
                         "default", (1.0, 1.0, 1.0, 1.0), 1.0, 1.0, double_sided=False))
                 mat = default_material
             name = f"{node_name}/{mesh_name}" + (f"/{p}" if len(prims) > 1 else "")
-            pieces.append(world_piece(name, matrix, positions, faces, mat, normals, uvs))
+            # a normal map without TANGENT: generated (clrender.tangents) from the set the map reads
+            material = materials[mat]
+            tangent_uv = material.normal_uv.texcoord if material.normal_texture >= 0 and tangents is None else None
+            pieces.append(world_piece(name, matrix, positions, faces, mat, normals, uvs, colors, tangents,
+                                      extra_uvs, tangent_uv))
 
     scene = assemble(pieces, materials, textures, str(path))
     scene.camera = _camera(doc, order, tm_scene, scene)
     _lights(doc, order, scene)
+    _warn_features(doc, features)
     return scene

@@ -2,8 +2,12 @@
 
 `load_document(path)` parses the JSON (or the GLB container's JSON and BIN chunks), loads every
 buffer (GLB chunk, data URI or external file) and checks what the loader relies on: buffer views
-and accessor ranges inside their buffers, every index into every array, attribute types and
-counts, primitive modes, node transforms, sampler wrap modes and material alpha modes. Bad input
+and accessor ranges inside their buffers, every index into every array, attribute types, component
+types and counts (NORMAL, TEXCOORD_n, COLOR_n, TANGENT: `ATTRIBUTE_FORMATS`), primitive modes, node
+transforms, sampler wrap modes, material alpha modes, every material textureInfo (texture index,
+texCoord, scale / strength, KHR_texture_transform) and that the TEXCOORD set each texture reads
+exists on the primitives using the material, and extensionsRequired (only
+`SUPPORTED_EXTENSIONS` are accepted). Bad input
 is a `SceneError` naming the file and the offending element, never a KeyError or a trimesh
 traceback. `Document.accessor(i)` then decodes an accessor (strided, sparse, normalized) to NumPy.
 """
@@ -26,9 +30,31 @@ COMPONENT_TYPES = {5120: "<i1", 5121: "<u1", 5122: "<i2", 5123: "<u2", 5125: "<u
 TYPE_SIZES = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4, "MAT2": 4, "MAT3": 9, "MAT4": 16}
 WRAP_MODES = {10497: "repeat", 33071: "clamp", 33648: "mirror"}
 MODE_TRIANGLES, MODE_STRIP, MODE_FAN = 4, 5, 6
-# required extensions whose absence changes geometry or textures: refuse the file
-UNSUPPORTED_REQUIRED = {"KHR_draco_mesh_compression", "EXT_meshopt_compression", "KHR_texture_basisu",
-                        "MSFT_texture_dds", "EXT_mesh_gpu_instancing", "KHR_mesh_quantization"}
+# The extensions clrender implements. A file that lists any other in extensionsRequired is refused
+# (SceneError naming it); other extensions it merely uses are ignored with one warning each
+# (clrender.loaders.gltf). EXT_texture_webp: `texture_source` reads its image (Pillow decodes WebP).
+SUPPORTED_EXTENSIONS = frozenset({"KHR_materials_emissive_strength", "KHR_materials_unlit", "KHR_texture_transform",
+                                  "KHR_lights_punctual", "EXT_texture_webp"})
+# Vertex attribute component types (glTF 2.0, "Meshes"): (componentType, normalized)
+FLOAT = {(5126, False)}
+UNORM_8_16 = {(5121, True), (5123, True)}
+SNORM_8_16 = {(5120, True), (5122, True)}
+COMPONENT_NAMES = {5120: "BYTE", 5121: "UNSIGNED_BYTE", 5122: "SHORT", 5123: "UNSIGNED_SHORT",
+                   5125: "UNSIGNED_INT", 5126: "FLOAT"}
+# attribute -> (allowed types, allowed (componentType, normalized)); TANGENT allows the snorm forms of
+# KHR_mesh_quantization, which Document.accessor decodes like any normalized accessor
+ATTRIBUTE_FORMATS = {
+    "NORMAL": (("VEC3",), None),                       # checked loosely, as before (any component type)
+    "TEXCOORD": (("VEC2",), FLOAT | UNORM_8_16),
+    "COLOR": (("VEC3", "VEC4"), FLOAT | UNORM_8_16),
+    "TANGENT": (("VEC4",), FLOAT | SNORM_8_16),
+}
+# material texture slots: (clrender slot, JSON path of its textureInfo, sRGB image)
+TEXTURE_INFOS = (("base_color", ("pbrMetallicRoughness", "baseColorTexture"), True),
+                 ("metallic_roughness", ("pbrMetallicRoughness", "metallicRoughnessTexture"), False),
+                 ("normal", ("normalTexture",), False),
+                 ("occlusion", ("occlusionTexture",), False),
+                 ("emissive", ("emissiveTexture",), True))
 GLB_MAGIC, GLB_JSON, GLB_BIN = 0x46546C67, 0x4E4F534A, 0x004E4942
 
 
@@ -197,10 +223,13 @@ def _validate_inner(doc: Document) -> None:
     version = str(j.get("asset", {}).get("version", ""))
     if not version.startswith("2"):
         raise doc.err(f"only glTF 2.0 is supported (asset.version is {version or 'missing'!r})")
-    required = set(j.get("extensionsRequired", []) or [])
-    bad = sorted(required & UNSUPPORTED_REQUIRED)
+    required = j.get("extensionsRequired", []) or []
+    if not isinstance(required, list) or not all(isinstance(e, str) for e in required):
+        raise doc.err("extensionsRequired must be an array of extension names")
+    bad = sorted(set(required) - SUPPORTED_EXTENSIONS)
     if bad:
-        raise doc.err(f"requires unsupported glTF extension(s): {', '.join(bad)}")
+        raise doc.err(f"requires unsupported glTF extension(s) {', '.join(bad)} (extensionsRequired; "
+                      f"clrender implements {', '.join(sorted(SUPPORTED_EXTENSIONS))})")
 
     # buffers
     for k, buf in enumerate(doc.list("buffers")):
@@ -291,13 +320,22 @@ def _validate_inner(doc: Document) -> None:
             if pos["type"] != "VEC3":
                 raise doc.err(f"{what}: POSITION must be VEC3, got {pos['type']}")
             nv = pos["count"]
-            for name, want in (("NORMAL", "VEC3"), ("TEXCOORD_0", "VEC2")):
-                if name in attrs:
-                    acc = accessors[attrs[name]]
-                    if acc["type"] != want:
-                        raise doc.err(f"{what}: {name} must be {want}, got {acc['type']}")
-                    if acc["count"] != nv:
-                        raise doc.err(f"{what}: {name} has {acc['count']} entries but POSITION has {nv}")
+            for name, idx in attrs.items():
+                kind = attribute_kind(name)
+                if kind not in ATTRIBUTE_FORMATS:
+                    continue
+                acc, (types, formats) = accessors[idx], ATTRIBUTE_FORMATS[kind]
+                fmt = (acc["componentType"], bool(acc.get("normalized", False)))
+                if acc["type"] not in types or (formats is not None and fmt not in formats):
+                    allowed = " or ".join(sorted({("normalized " if n else "") + COMPONENT_NAMES[c]
+                                                  for c, n in (formats or ())}))
+                    got = ("normalized " if fmt[1] else "") + COMPONENT_NAMES[fmt[0]]
+                    raise doc.err(f"{what}: attribute {name} (accessor {idx}) must be {' or '.join(types)}"
+                                  + (f" of {allowed}" if formats else "") + f", got {acc['type']} of {got}")
+                if acc["count"] != nv:
+                    raise doc.err(f"{what}: {name} has {acc['count']} entries but POSITION has {nv}")
+            if "material" in prim:
+                _check_texcoords(doc, what, prim["material"], attrs)
             if "indices" in prim:
                 idx = accessor_ref(prim["indices"], f"{what} indices")
                 if idx["type"] != "SCALAR" or idx["componentType"] not in (5121, 5123, 5125):
@@ -355,12 +393,111 @@ def _validate_inner(doc: Document) -> None:
         if "bufferView" in img:
             doc.get("bufferViews", img["bufferView"], f"image {i}")
     for m, mat in enumerate(doc.list("materials")):
-        info = mat.get("pbrMetallicRoughness", {}).get("baseColorTexture")
-        if info is not None:
-            doc.get("textures", info.get("index"), f"material {m} ({mat.get('name', '')!r}) baseColorTexture")
+        if not isinstance(mat, dict):
+            raise doc.err(f"materials[{m}] must be an object")
+        where = f"material {m} ({mat.get('name', '')!r})"
+        for key in ("pbrMetallicRoughness", "extensions"):
+            if not isinstance(mat.get(key, {}), dict):
+                raise doc.err(f"{where}: {key} must be an object")
+        for slot, label, info in material_textures(doc, m, mat):
+            doc.get("textures", info.get("index"), f"{where} {label}")
+            texcoord_of(doc, f"{where} {label}", info)
+            for key, lo, hi in (("scale", -np.inf, np.inf), ("strength", 0.0, 1.0)):
+                if key in info:
+                    v = _finite(info[key], f"{where} {label}.{key}", doc, lo if lo > -np.inf else None)
+                    if v > hi:
+                        raise doc.err(f"{where} {label}.{key} must be <= {hi}, got {v!r}")
         mode = mat.get("alphaMode", "OPAQUE")
         if mode not in ("OPAQUE", "MASK", "BLEND"):
             raise doc.err(f"material {m}: unknown alphaMode {mode!r}")
+
+
+def extensions_in_use(doc: Document) -> dict[str, str]:
+    """{extension name: where it first appears} over extensionsUsed and every `extensions` object of
+    the document (root, materials, textureInfos, nodes, primitives, ...); `extras` are not searched."""
+    found: dict[str, str] = {}
+
+    def walk(value, where: str):
+        if isinstance(value, dict):
+            ext = value.get("extensions")
+            if isinstance(ext, dict):
+                for name in ext:
+                    found.setdefault(str(name), where or "the top level")
+            for key, child in value.items():
+                if key != "extras":
+                    walk(child, f"{where}.{key}" if where else key)
+        elif isinstance(value, list):
+            for i, child in enumerate(value):
+                walk(child, f"{where}[{i}]")
+
+    walk(doc.json, "")
+    for name in doc.json.get("extensionsUsed", []) or []:
+        if isinstance(name, str):
+            found.setdefault(name, "extensionsUsed")
+    return found
+
+
+def attribute_kind(name: str) -> str:
+    """'TEXCOORD_1' -> 'TEXCOORD', 'COLOR_0' -> 'COLOR', 'NORMAL' -> 'NORMAL'."""
+    head, _, tail = name.rpartition("_")
+    return head if head and tail.isdigit() else name
+
+
+def attribute_sets(attrs: dict, kind: str) -> list[int]:
+    """The set indices n of the `kind`_n attributes (e.g. TEXCOORD_0, TEXCOORD_2 -> [0, 2]), sorted."""
+    return sorted(int(a.rpartition("_")[2]) for a in attrs if attribute_kind(a) == kind and a != kind)
+
+
+def material_textures(doc: Document, m: int, mat: dict) -> list[tuple[str, str, dict]]:
+    """(clrender slot, JSON label, textureInfo) of every texture the material references."""
+    out = []
+    for slot, path, _ in TEXTURE_INFOS:
+        info = mat.get(path[0]) if len(path) == 1 else (mat.get(path[0]) or {}).get(path[1])
+        if info is None:
+            continue
+        label = ".".join(path)
+        if not isinstance(info, dict):
+            raise doc.err(f"material {m} ({mat.get('name', '')!r}) {label} must be an object")
+        out.append((slot, label, info))
+    return out
+
+
+def texcoord_of(doc: Document, what: str, info: dict) -> int:
+    """The TEXCOORD set a textureInfo reads: KHR_texture_transform's texCoord when given, else its own
+    texCoord (default 0); validates the transform's fields on the way."""
+    k = _int(info.get("texCoord", 0), f"{what}.texCoord", doc)
+    ext = (info.get("extensions") or {})
+    if not isinstance(ext, dict):
+        raise doc.err(f"{what}.extensions must be an object")
+    tt = ext.get("KHR_texture_transform")
+    if tt is None:
+        return k
+    if not isinstance(tt, dict):
+        raise doc.err(f"{what}: KHR_texture_transform must be an object")
+    for key, n in (("offset", 2), ("scale", 2)):
+        if key in tt:
+            v = tt[key]
+            if not isinstance(v, list) or len(v) != n:
+                raise doc.err(f"{what}: KHR_texture_transform.{key} must be {n} numbers, got {v!r}")
+            for x in v:
+                _finite(x, f"{what}: KHR_texture_transform.{key}", doc)
+    if "rotation" in tt:
+        _finite(tt["rotation"], f"{what}: KHR_texture_transform.rotation", doc)
+    if "texCoord" in tt:
+        k = _int(tt["texCoord"], f"{what}: KHR_texture_transform.texCoord", doc)
+    return k
+
+
+def _check_texcoords(doc: Document, what: str, m: int, attrs: dict) -> None:
+    """Every texture of material `m` reads a TEXCOORD set that primitive `what` has (the glTF
+    validator's MESH_PRIMITIVE_TOO_FEW_TEXCOORDS is an error, not a warning)."""
+    mat = doc.get("materials", m, what)
+    for slot, label, info in material_textures(doc, m, mat):
+        k = texcoord_of(doc, f"material {m} ({mat.get('name', '')!r}) {label}", info)
+        if f"TEXCOORD_{k}" not in attrs:
+            have = ", ".join(f"TEXCOORD_{n}" for n in attribute_sets(attrs, "TEXCOORD")) or "none"
+            raise doc.err(f"{what}: material {m} ({mat.get('name', '')!r}) reads its {label} from TEXCOORD_{k}, "
+                          f"which the primitive does not have (texture coordinate sets: {have})")
 
 
 LIGHT_TYPES = ("directional", "point", "spot")

@@ -24,6 +24,10 @@ up = [0, 1, 0]                # optional, default [0, 1, 0]
 fov_y_deg = 50                # optional, default 60
 near = 0.1                    # optional, default 0.1
 far = 100                     # optional, default 100
+projection = "perspective"    # optional: "perspective" (default) or "orthographic", which takes
+# xmag = 4, ymag = 3          #   instead of fov_y_deg the view box's half-width and half-height
+                              #   (world units; the image aspect decides the width: ymag·W/H, as glTF
+                              #   viewers do) and allows near = 0
 
 [render]                      # -> Scene.settings["render"]
 width = 960
@@ -101,7 +105,8 @@ import numpy as np
 from .. import structs
 from ..camera import Camera
 from ..scene import ALPHA_MODES, Material, Scene, SceneError, Sun
-from .common import fail, transform_normals, transform_points
+from .common import (concat_vertex_attributes, fail, shift_textures, transform_normals, transform_points,
+                     transform_tangents)
 from .lights import (AUTO_RADIUS_KEY, DIRECTIONAL_KEY, auto_radius, refresh_auto_radii, scene_diagonal,
                      sun_from_directional, transform_lights, warn_directional)
 
@@ -110,7 +115,7 @@ SUN_KEYS = {"direction", "color", "intensity", "shadow", "shadow_map_size"}
 MESH_KEYS = {"path", "name", "transform", "opacity", "refraction"}
 MATERIAL_KEYS = {"name", "opacity", "refraction", "alpha_mode", "alpha_cutoff"}
 TRANSFORM_KEYS = {"translate", "rotate_deg", "scale"}
-CAMERA_KEYS = {"eye", "target", "up", "fov_y_deg", "near", "far"}
+CAMERA_KEYS = {"eye", "target", "up", "fov_y_deg", "near", "far", "projection", "xmag", "ymag"}
 # [render]: the image size, a background colour, and any RenderConfig option (validated by it)
 RENDER_KEYS = {"width", "height", "background"}
 LIGHT_KEYS = {"type", "name", "position", "direction", "color", "intensity", "radius", "range",
@@ -188,6 +193,7 @@ def _transform_scene(scene: Scene, matrix: np.ndarray) -> Scene:
     transform_lights(scene, matrix)
     scene.positions = transform_points(matrix, scene.positions).astype(np.float32)
     scene.normals = transform_normals(matrix, scene.normals).astype(np.float32)
+    scene.tangents = transform_tangents(matrix, scene.tangents)
     if np.linalg.det(matrix[:3, :3]) < 0:
         scene.triangles = np.ascontiguousarray(scene.triangles[:, [0, 2, 1]])
     if scene.camera is not None:
@@ -195,7 +201,11 @@ def _transform_scene(scene: Scene, matrix: np.ndarray) -> Scene:
         eye, target = transform_points(matrix, [c.eye, c.target])
         up = matrix[:3, :3] @ np.asarray(c.up)
         scale = abs(np.linalg.det(matrix[:3, :3])) ** (1.0 / 3.0)
-        scene.camera = Camera.look_at(eye, target, up, c.fov_y_deg, c.near * scale, c.far * scale)
+        if c.is_orthographic:
+            scene.camera = Camera.orthographic(eye, target, up, c.xmag * scale, c.ymag * scale, c.near * scale,
+                                               c.far * scale)
+        else:
+            scene.camera = Camera.look_at(eye, target, up, c.fov_y_deg, c.near * scale, c.far * scale)
     return scene
 
 
@@ -207,10 +217,23 @@ def _camera(path, data) -> Camera:
             raise fail(path, f"[camera] needs {key!r}")
     kw = {"eye": _vector(path, "camera.eye", data["eye"]), "target": _vector(path, "camera.target", data["target"]),
           "up": _vector(path, "camera.up", data.get("up", [0, 1, 0]))}
-    for key, default in (("fov_y_deg", 60.0), ("near", 0.1), ("far", 100.0)):
-        kw[key] = _number(path, f"camera.{key}", data.get(key, default), positive=True)
+    projection = data.get("projection", "perspective")
+    if projection not in ("perspective", "orthographic"):
+        raise fail(path, f"camera.projection must be \"perspective\" or \"orthographic\", got {projection!r}")
+    ortho = projection == "orthographic"
+    for key in ("fov_y_deg",) if ortho else ("xmag", "ymag"):
+        if key in data:
+            raise fail(path, f"[camera]: {key} applies to "
+                             f"{'perspective' if ortho else 'orthographic'} cameras, not {projection!r} ones")
+    for key in ("xmag", "ymag") if ortho else ():
+        if key not in data:
+            raise fail(path, f"[camera] with projection = \"orthographic\" needs {key!r} (half-"
+                             f"{'width' if key == 'xmag' else 'height'} of the view box, world units)")
+        kw[key] = _number(path, f"camera.{key}", data[key], positive=True)
+    for key, default in ((() if ortho else (("fov_y_deg", 60.0),)) + (("near", 0.1), ("far", 100.0))):
+        kw[key] = _number(path, f"camera.{key}", data.get(key, default), positive=not (ortho and key == "near"))
     try:
-        return Camera.look_at(**kw)
+        return Camera.orthographic(**kw) if ortho else Camera.look_at(**kw)
     except ValueError as exc:
         raise fail(path, f"[camera]: {exc}") from None
 
@@ -463,8 +486,7 @@ def _concatenate(parts: list[tuple[str, Scene]], source: str) -> Scene:
         directional.extend(s.settings.get(DIRECTIONAL_KEY, []))
         t_off, m_off, n_off = len(textures), len(materials), len(names)
         textures.extend(s.textures)
-        materials.extend(replace(m, base_color_texture=m.base_color_texture + t_off)
-                         if m.base_color_texture >= 0 else m for m in s.materials)
+        materials.extend(shift_textures(m, t_off) for m in s.materials)
         names.extend(f"{label}:{n}" for n in s.mesh_names)
         positions.append(s.positions)
         normals.append(s.normals)
@@ -491,7 +513,8 @@ def _concatenate(parts: list[tuple[str, Scene]], source: str) -> Scene:
                  textures=textures, mesh_names=names,
                  triangle_mesh=cat(tri_mesh, (0,), np.int32), triangle_face=cat(tri_face, (0,), np.int32),
                  source=source, settings=settings,
-                 lights=np.concatenate(lights) if lights else np.zeros(0, structs.light_dtype))
+                 lights=np.concatenate(lights) if lights else np.zeros(0, structs.light_dtype),
+                 **concat_vertex_attributes([s for _, s in parts]))
 
 
 def load_toml(path) -> Scene:

@@ -28,7 +28,7 @@ class AbufferPass(RenderPass):
         super().__init__(device, config)
         self.walk = fragments               # the fragments pass: its tile shape and defines
         self.fill_kernel = device.kernel("fragments.cl", "fragment_fill", fragments.defines)
-        defines = forward_defines(config, device)
+        defines = forward_defines(config, device, fragments.ortho)
         self.vec = forward_vec(config, device)
         self.sort_kernel = device.kernel("abuffer.cl", "abuffer_sort", defines)
         self.resolve_kernel = device.kernel("abuffer.cl", "abuffer_resolve", defines)

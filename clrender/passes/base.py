@@ -38,6 +38,21 @@ class Overflow:
     capacity: int
 
 
+# The scene resources a surface is evaluated from, in the order of kernels/surface_vec.h
+# SCENE_PARAMS (after the prims), as the scene upload names them (clrender/scene_gpu.py).
+SCENE_INPUTS = ("positions", "normals", "uvs", "triangles", "materials", "texels", "srgb_lut", "tex_infos",
+                "tex_levels", "tangents", "colors", "n_vertices", "has_colors")
+
+
+def scene_args(res: Resources, prims) -> tuple:
+    """Kernel arguments for SCENE_PARAMS(prims): the prims buffer, then the SCENE_INPUTS."""
+    args = [prims.data]
+    for name in SCENE_INPUTS:
+        v = res[name]
+        args.append(np.int32(v) if name in ("n_vertices", "has_colors") else v.data)
+    return tuple(args)
+
+
 class RenderPass:
     name: str = ""
     inputs: tuple[str, ...] = ()
@@ -95,6 +110,13 @@ class _Timed:
         import pyopencl as cl
         events = self.owner.__dict__.setdefault("_stage_events", [])
         events.append((self.stage, self.start, cl.enqueue_marker(self.owner.queue)))
+
+
+def view_defines(ortho: bool) -> dict:
+    """Build options of a kernel that rasterizes the camera's view or rebuilds positions from its
+    depth: ORTHO=1 for an orthographic camera, nothing for a perspective one (those programs are
+    unchanged)."""
+    return {"ORTHO": 1} if ortho else {}
 
 
 def zeros(queue, n, dtype) -> cla.Array:

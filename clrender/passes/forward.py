@@ -5,10 +5,9 @@ from __future__ import annotations
 import numpy as np
 
 from .. import capabilities
-from .base import round_up
+from .base import SCENE_INPUTS, round_up, scene_args, view_defines
 
-FORWARD_INPUTS = ("prims", "positions", "normals", "uvs", "triangles", "materials", "texels", "srgb_lut",
-                  "tex_infos", "tex_levels", "camera_params", "ambient", "lights", "n_lights", "light_env")
+FORWARD_INPUTS = ("prims",) + SCENE_INPUTS + ("camera_params", "ambient", "lights", "n_lights", "light_env")
 
 
 def forward_vec(config, device) -> int:
@@ -16,9 +15,11 @@ def forward_vec(config, device) -> int:
     return min(capabilities.pixel_vector_width(device.cl_device), config.light_tile_size)
 
 
-def forward_defines(config, device) -> dict:
+def forward_defines(config, device, ortho: bool = False) -> dict:
+    """ortho: an orthographic camera (lighting.h / forward.h rebuild positions with ORTHO)."""
     return {"VEC": forward_vec(config, device), "LIGHT_TILE": config.light_tile_size,
-            "BRUTE_FORCE": int(config.light_culling == "brute_force"), **device_light_defines(config)}
+            "BRUTE_FORCE": int(config.light_culling == "brute_force"), **device_light_defines(config),
+            **view_defines(ortho)}
 
 
 def forward_grid(width: int, height: int, vec: int) -> tuple[tuple, tuple]:
@@ -36,8 +37,6 @@ def device_light_defines(config) -> dict:
 def forward_args(res, prims) -> tuple:
     """FORWARD_PARAMS for a frame; `prims` is the transparent prim buffer."""
     env = res["light_env"]
-    return (prims.data, res["positions"].data, res["normals"].data, res["uvs"].data, res["triangles"].data,
-            res["materials"].data, res["texels"].data, res["srgb_lut"].data, res["tex_infos"].data,
-            res["tex_levels"].data, res["camera_params"].data, np.int32(res["width"]), np.int32(res["height"]),
+    return (*scene_args(res, prims), res["camera_params"].data, np.int32(res["width"]), np.int32(res["height"]),
             np.float32(res["ambient"]), res["lights"].data, np.int32(res["n_lights"]), *env.lists,
             *env.shadow_and_sun)

@@ -8,6 +8,7 @@ from __future__ import annotations
 import numpy as np
 
 from .. import gbuffer as layout
+from .base import SCENE_INPUTS, scene_args
 from .shade import ShadePass
 
 AOV_PLANES = tuple(p for p in layout.PLANES if p not in layout.DEPTH_PLANES)
@@ -16,11 +17,10 @@ AOV_PLANES = tuple(p for p in layout.PLANES if p not in layout.DEPTH_PLANES)
 class ForwardShadePass(ShadePass):
     name = "forward_shade"
 
-    def __init__(self, device, config):
-        super().__init__(device, config)
+    def __init__(self, device, config, ortho: bool = False):
+        super().__init__(device, config, ortho)
         self.inputs = tuple(i for i in self.inputs if i != "ao") + (
-            "vis_prim", "vis_depth", "prims", "positions", "normals", "uvs", "triangles", "materials", "texels",
-            "srgb_encode", "tex_infos", "tex_levels", "prev_view_proj")
+            "vis_prim", "vis_depth", "prims") + SCENE_INPUTS + ("srgb_encode", "prev_view_proj")
 
     def _build_kernel(self, device, config):
         return device.kernel("forward_shade.cl", "forward_shade",
@@ -33,11 +33,9 @@ class ForwardShadePass(ShadePass):
         prev_positions = res.buffers.get("prev_positions")          # only when some object moved
         has_prev = int(res["has_prev"] or prev_positions is not None)
         self.kernel(self.queue, (self.tiles_x * t // self.vec, self.tiles_y * t), (t // self.vec, t),
-                    res["vis_prim"].data, res["vis_depth"].data, res["prims"].data,
+                    res["vis_prim"].data, res["vis_depth"].data,
                     np.int32(res["width"]), np.int32(res["height"]), np.float32(res["far"]),
-                    res["positions"].data, res["normals"].data, res["uvs"].data, res["triangles"].data,
-                    res["materials"].data, res["texels"].data, res["srgb_lut"].data, res["srgb_encode"].data,
-                    res["tex_infos"].data, res["tex_levels"].data, res["prev_view_proj"].data,
+                    *scene_args(res, res["prims"]), res["srgb_encode"].data, res["prev_view_proj"].data,
                     (prev_positions if prev_positions is not None else res["positions"]).data, np.int32(has_prev),
                     res["camera_params"].data, res["lights"].data, np.int32(res["n_lights"]),
                     np.float32(res["ambient"]), offsets.data, counts.data, lists.data, np.int32(capacity),

@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 
 from .. import capabilities
-from .base import Overflow, RenderPass, Resources, empty
+from .base import Overflow, RenderPass, Resources, empty, view_defines
 from .binning import BinningPass
 from .setup import SetupPass
 
@@ -21,13 +21,16 @@ class FragmentsPass(RenderPass):
     outputs = ("t_prims", "t_tile_offsets", "t_tile_counts", "t_tile_prims", "t_tile_list_capacity", "t_tiles_x",
                "frag_count", "frag_list_len", "t_range", "has_fragments")
 
-    def __init__(self, device, config):
+    def __init__(self, device, config, ortho: bool = False):
+        """ortho: an orthographic camera (setup.cl / coverage.h ORTHO; the forward passes read it)."""
         super().__init__(device, config)
-        self.setup = SetupPass(device, config, select="blend")
+        self.ortho = bool(ortho)
+        self.setup = SetupPass(device, config, select="blend", ortho=ortho)
         self.binning = BinningPass(device, config)
         self.tile = capabilities.tile_size_for(device.cl_device, config.tile_size)
         self.vec = capabilities.raster_vector_width(device.cl_device, self.tile)
-        self.defines = {"TILE": self.tile, "VEC": self.vec, "MAX_FRAGMENTS": config.max_fragments_per_pixel}
+        self.defines = {"TILE": self.tile, "VEC": self.vec, "MAX_FRAGMENTS": config.max_fragments_per_pixel,
+                        **view_defines(ortho)}
         self.count_kernel = device.kernel("fragments.cl", "fragment_count", self.defines)
         self.scene_key = None
 

@@ -9,24 +9,23 @@ import numpy as np
 
 from .. import capabilities
 from .. import gbuffer as layout
-from .base import RenderPass, empty, round_up
+from .base import SCENE_INPUTS, RenderPass, empty, round_up, scene_args, view_defines
 
 
 class GBufferPass(RenderPass):
     name = "gbuffer"
-    inputs = ("vis_depth", "vis_prim", "prims", "positions", "normals", "uvs", "triangles", "materials",
-              "texels", "srgb_lut", "srgb_encode", "tex_infos", "tex_levels", "prev_view_proj")
+    inputs = ("vis_depth", "vis_prim", "prims") + SCENE_INPUTS + ("srgb_encode", "prev_view_proj")
     outputs = ("gbuffer",)
 
-    def __init__(self, device, config, planes=layout.PLANES):
+    def __init__(self, device, config, planes=layout.PLANES, ortho: bool = False):
         """planes: the G-buffer planes this pass writes (layout.PLANES names): all for the deferred
         pipeline, `THIN_PLANES` for the light pre-pass, `DEPTH_PLANES` for light-indexed. The
-        others are left for a later pass to write as AOVs."""
+        others are left for a later pass to write as AOVs. ortho: orthographic prims (setup.cl ORTHO)."""
         super().__init__(device, config)
         self.vec = capabilities.pixel_vector_width(device.cl_device)
         self.planes = tuple(planes)
         defines = {**layout.kernel_defines(), "VEC": self.vec, "GB_WRITE": layout.plane_mask(self.planes),
-                   "SURFACE_TEXTURES": int("albedo_spec" in self.planes)}
+                   "SURFACE_TEXTURES": int("albedo_spec" in self.planes), **view_defines(ortho)}
         self.kernel = device.kernel("gbuffer.cl", "gbuffer_resolve", defines)
 
     def allocate(self, width, height):
@@ -42,9 +41,6 @@ class GBufferPass(RenderPass):
         if prev_positions is None:
             prev_positions = res["positions"]
         self.kernel(self.queue, (round_up(-(-w * h // self.vec), 64),), (64,),
-                    res["vis_depth"].data, res["vis_prim"].data, res["prims"].data,
-                    np.int32(w), np.int32(h), np.float32(res["far"]),
-                    res["positions"].data, res["normals"].data, res["uvs"].data, res["triangles"].data,
-                    res["materials"].data, res["texels"].data, res["srgb_lut"].data, res["srgb_encode"].data,
-                    res["tex_infos"].data, res["tex_levels"].data,
+                    res["vis_depth"].data, res["vis_prim"].data, np.int32(w), np.int32(h), np.float32(res["far"]),
+                    *scene_args(res, res["prims"]), res["srgb_encode"].data,
                     res["prev_view_proj"].data, prev_positions.data, np.int32(has_prev), self.gbuffer.data)

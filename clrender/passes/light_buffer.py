@@ -22,8 +22,8 @@ class LightBufferPass(ShadePass):
     name = "light_buffer"
     outputs = ("light_buffer", "light_count", "shadow", "shadow_planes", "light_env")
 
-    def __init__(self, device, config):
-        super().__init__(device, config)
+    def __init__(self, device, config, ortho: bool = False):
+        super().__init__(device, config, ortho)
         self.inputs = tuple(i for i in self.inputs if i not in ("srgb_lut", "ao"))
         self.dtype = PRECISIONS[config.light_buffer_precision][0]
         self.planes = light_buffer_planes(config)

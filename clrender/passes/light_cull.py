@@ -5,7 +5,7 @@ import numpy as np
 
 from .. import capabilities
 from .. import gbuffer as layout
-from .base import Overflow, RenderPass, empty, round_up, scan_for, zeros
+from .base import Overflow, RenderPass, empty, round_up, scan_for, view_defines, zeros
 
 
 class TileLightLists(RenderPass):
@@ -47,12 +47,13 @@ class LightCullPass(TileLightLists):
     name = "light_cull"
     inputs = ("lights", "n_lights", "gbuffer", "view_matrix", "tan_x", "tan_y")
 
-    def __init__(self, device, config):
+    def __init__(self, device, config, ortho: bool = False):
+        """ortho: an orthographic camera (light_cull.cl ORTHO: tile frusta are boxes)."""
         super().__init__(device, config)
         self.tile = config.light_tile_size
         self.vec = capabilities.pixel_vector_width(device.cl_device)
         defines = {**layout.kernel_defines(), "LTILE": self.tile, "VEC": self.vec,
-                   "DEPTH_MASK": int(config.light_depth_mask)}
+                   "DEPTH_MASK": int(config.light_depth_mask), **view_defines(ortho)}
         kernel = lambda name: device.kernel("light_cull.cl", name, defines)   # noqa: E731
         self.bounds_kernel = kernel("light_view_bounds")
         self.depth_kernel = kernel("tile_depth_bounds")

@@ -8,7 +8,7 @@ import numpy as np
 
 from .. import capabilities
 from .. import gbuffer as layout
-from .base import empty, round_up, scan_for, zeros
+from .base import empty, round_up, scan_for, view_defines, zeros
 from .light_cull import TileLightLists
 
 
@@ -16,7 +16,8 @@ class LightQuadsPass(TileLightLists):
     name = "light_quads"
     inputs = ("lights", "n_lights", "view_matrix", "tan_x", "tan_y", "near", "far", "camera")
 
-    def __init__(self, device, config):
+    def __init__(self, device, config, ortho: bool = False):
+        """ortho: an orthographic camera (light_quads.cl ORTHO: a sphere's quad is its box)."""
         super().__init__(device, config)
         self.tile = config.light_tile_size
         self.vec = capabilities.pixel_vector_width(device.cl_device)
@@ -24,7 +25,7 @@ class LightQuadsPass(TileLightLists):
         cull_defines = {**layout.kernel_defines(), "LTILE": self.tile, "VEC": self.vec,
                         "DEPTH_MASK": int(config.light_depth_mask)}
         self.bounds_kernel = device.kernel("light_cull.cl", "light_view_bounds", cull_defines)
-        defines = {"LTILE": self.tile, "VEC": self.vec}
+        defines = {"LTILE": self.tile, "VEC": self.vec, **view_defines(ortho)}
         self.rect_kernel = device.kernel("light_quads.cl", "light_quad_rects", defines)
         self.count_kernel = device.kernel("light_quads.cl", "light_quads_count", defines)
         self.fill_kernel = device.kernel("light_quads.cl", "light_quads_fill", defines)

@@ -8,7 +8,7 @@ import numpy as np
 
 from .. import capabilities
 from .. import gbuffer as layout
-from .base import Overflow, RenderPass, empty, zeros
+from .base import Overflow, RenderPass, empty, view_defines, zeros
 
 INITIAL_WORDS = 1        # 32 lights per tile list before the first growth
 
@@ -19,11 +19,12 @@ class LightStencilPass(RenderPass):
               "tile_lights", "light_list_capacity", "light_tiles_x")
     outputs = ("light_stencil", "light_stencil_words")
 
-    def __init__(self, device, config):
+    def __init__(self, device, config, ortho: bool = False):
+        """ortho: an orthographic camera (lighting.h ORTHO positions)."""
         super().__init__(device, config)
         self.tile = capabilities.tile_size_for(device.cl_device, config.light_tile_size)
         self.vec = min(capabilities.pixel_vector_width(device.cl_device), self.tile)   # shade.cl's runs
-        defines = {**layout.kernel_defines(), "LTILE": self.tile, "VEC": self.vec}
+        defines = {**layout.kernel_defines(), "LTILE": self.tile, "VEC": self.vec, **view_defines(ortho)}
         self.kernel = device.kernel("light_stencil.cl", "light_stencil", defines)
         self.words_kernel = device.kernel("light_stencil.cl", "stencil_words_needed", defines)
         self.needed = zeros(self.queue, 1, np.int32)

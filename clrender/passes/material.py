@@ -10,23 +10,26 @@ import numpy as np
 
 from .. import capabilities
 from .. import gbuffer as layout
-from .base import RenderPass, empty, round_up
+from .base import SCENE_INPUTS, RenderPass, empty, round_up, scene_args, view_defines
 from .light_buffer import PRECISIONS
 from .second_geometry import sample_offsets
+
+
+AOV_PLANES = ("albedo_spec", "emissive_occlusion")     # the planes the light pre-pass's G-buffer lacks
 
 
 class MaterialPass(RenderPass):
     name = "material"
     outputs = ("color",)
 
-    def __init__(self, device, config, samples: int = 1):
+    def __init__(self, device, config, samples: int = 1, ortho: bool = False):
         """samples: how many sub-sample visibility buffers run() combines; sample s reads
-        res[f"vis_prim_{s}"] and res[f"prims_{s}"] (s = 0 only: "vis_prim", "prims")."""
+        res[f"vis_prim_{s}"] and res[f"prims_{s}"] (s = 0 only: "vis_prim", "prims").
+        ortho: orthographic prims (surface_vec.h ORTHO)."""
         super().__init__(device, config)
         self.samples = samples
         self.vec = capabilities.pixel_vector_width(device.cl_device)
-        self.inputs = ("light_buffer", "gbuffer", "positions", "normals", "uvs", "triangles", "materials", "texels",
-                       "srgb_lut", "srgb_encode", "tex_infos", "tex_levels", "ambient") + (
+        self.inputs = ("light_buffer", "gbuffer") + SCENE_INPUTS + ("srgb_encode", "ambient") + (
             ("ao",) if config.ssao else ()) + (
             ("vis_prim", "prims") if samples == 1 else
             tuple(n for s in range(samples) for n in (f"vis_prim_{s}", f"prims_{s}")) + ("vis_prim", "prims"))
@@ -34,7 +37,7 @@ class MaterialPass(RenderPass):
             **layout.kernel_defines(), "VEC": self.vec, "SSAO": int(config.ssao),
             "SPECULAR_RGB": int(config.light_buffer_specular == "rgb"),
             "LB_HALF": PRECISIONS[config.light_buffer_precision][1],
-            "GB_WRITE": layout.plane_mask(("albedo_spec",))})
+            "GB_WRITE": layout.plane_mask(AOV_PLANES), **view_defines(ortho)})
 
     def allocate(self, width, height):
         self.color = empty(self.queue, 3 * width * height, np.float32)
@@ -51,10 +54,8 @@ class MaterialPass(RenderPass):
         for s, (dx, dy) in enumerate(sample_offsets(self.samples)):
             vis, prims = (("vis_prim", "prims") if self.samples == 1 else (f"vis_prim_{s}", f"prims_{s}"))
             write_aov = 0 if s else (1 if self.samples == 1 else 2)
-            self.kernel(self.queue, gsize, (64,), res[vis].data, res[prims].data, np.int32(w), np.int32(h),
-                        res["positions"].data, res["normals"].data, res["uvs"].data, res["triangles"].data,
-                        res["materials"].data, res["texels"].data, res["srgb_lut"].data, res["srgb_encode"].data,
-                        res["tex_infos"].data, res["tex_levels"].data, res["light_buffer"].data,
+            self.kernel(self.queue, gsize, (64,), res[vis].data, np.int32(w), np.int32(h),
+                        *scene_args(res, res[prims]), res["srgb_encode"].data, res["light_buffer"].data,
                         np.float32(res["ambient"]), ao.data, np.int32(s), np.int32(self.samples), np.int32(dx), np.int32(dy),
                         np.int32(write_aov), res["vis_prim"].data, res["prims"].data, self.color.data,
                         self.spread.data, res["gbuffer"].data)

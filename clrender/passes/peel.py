@@ -21,7 +21,7 @@ class PeelPass(RenderPass):
         super().__init__(device, config)
         self.walk = fragments
         self.find_kernel = device.kernel("fragments.cl", "fragment_next_layer", fragments.defines)
-        self.shade_kernel = device.kernel("peel.cl", "peel_shade", forward_defines(config, device))
+        self.shade_kernel = device.kernel("peel.cl", "peel_shade", forward_defines(config, device, fragments.ortho))
         self.vec = forward_vec(config, device)
 
     def allocate(self, width, height):

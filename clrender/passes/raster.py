@@ -10,7 +10,7 @@ from .base import RenderPass, empty
 class RasterPass(RenderPass):
     name = "raster"
     inputs = ("prims", "tile_counts", "tile_offsets", "tile_prims", "uvs", "triangles", "materials",
-              "texels", "srgb_lut", "tex_infos", "tex_levels")
+              "texels", "srgb_lut", "tex_infos", "tex_levels", "colors", "n_vertices", "has_colors")
     outputs = ("vis_depth", "vis_prim")
 
     def __init__(self, device, config, ortho: bool = False, depth_only: bool = False):
@@ -50,4 +50,4 @@ class RasterPass(RenderPass):
                     np.int32(res["width"]), np.int32(res["height"]), np.float32(res["far"]),
                     res["uvs"].data, res["triangles"].data, res["materials"].data,
                     res["texels"].data, res["srgb_lut"].data, res["tex_infos"].data, res["tex_levels"].data,
-                    *target)
+                    res["colors"].data, np.int32(res["n_vertices"]), np.int32(res["has_colors"]), *target)

@@ -34,8 +34,8 @@ def sample_offsets(n: int) -> tuple:
 class RasterAgainPass(RasterPass):
     name = "raster_again"
 
-    def __init__(self, device, config, first: RasterPass):
-        super().__init__(device, config)
+    def __init__(self, device, config, first: RasterPass, ortho: bool = False):
+        super().__init__(device, config, ortho=ortho)
         self.first = first
 
     def allocate(self, width, height):
@@ -44,12 +44,13 @@ class RasterAgainPass(RasterPass):
 
 class SampleGeometryPass(RenderPass):
     name = "msaa_geometry"
-    inputs = SetupPass.inputs + ("uvs", "texels", "srgb_lut", "tex_infos", "tex_levels")
+    inputs = SetupPass.inputs + ("uvs", "texels", "srgb_lut", "tex_infos", "tex_levels", "colors", "n_vertices",
+                                 "has_colors")
 
-    def __init__(self, device, config, samples: int, select: str):
+    def __init__(self, device, config, samples: int, select: str, ortho: bool = False):
         super().__init__(device, config)
-        self.trios = [(SetupPass(device, config, select=select, sample=offset), BinningPass(device, config),
-                       RasterPass(device, config)) for offset in sample_offsets(samples)]
+        self.trios = [(SetupPass(device, config, select=select, sample=offset, ortho=ortho), BinningPass(device, config),
+                       RasterPass(device, config, ortho=ortho)) for offset in sample_offsets(samples)]
         self.outputs = tuple(n for s in range(samples) for n in (f"vis_prim_{s}", f"prims_{s}"))
 
     def allocate(self, width, height):

@@ -9,7 +9,7 @@ from dataclasses import dataclass
 
 from .. import capabilities, structs
 from .. import gbuffer as layout
-from .base import RenderPass, empty, zeros
+from .base import RenderPass, empty, view_defines, zeros
 
 
 SHADOW_FILTERS = {"hard": 0, "pcf3x3": 1, "poisson": 2}
@@ -61,11 +61,14 @@ class ShadePass(RenderPass):
     name = "shade"
     outputs = ("color", "light_count", "shadow", "shadow_planes", "light_env")
 
-    def __init__(self, device, config):
+    def __init__(self, device, config, ortho: bool = False):
+        """ortho: an orthographic camera (lighting.h ORTHO: positions and view vectors)."""
         super().__init__(device, config)
+        self.ortho = bool(ortho)
         self.brute_force = config.light_culling == "brute_force"
         self.stencil = config.light_culling == "stencil"      # light_stencil.cl's per-pixel bits
-        self.inputs = ("gbuffer", "lights", "n_lights", "ambient", "camera_params", "srgb_lut") + (
+        self.inputs = ("gbuffer", "lights", "n_lights", "ambient", "camera_params", "srgb_lut", "surface_extras",
+                       "tri_material", "materials") + (
             () if self.brute_force else ("tile_light_counts", "tile_light_offsets", "tile_lights")) + (
             ("light_stencil", "light_stencil_words") if self.stencil else ()) + (
             ("ao",) if config.ssao else ()) + ("sun",) + (
@@ -88,7 +91,7 @@ class ShadePass(RenderPass):
         """Build options of every kernel that walks the light lists (lighting.h)."""
         return {**layout.kernel_defines(), "LTILE": self.tile, "VEC": self.vec, "BRUTE_FORCE": int(self.brute_force),
                 "SHADOWS": int(config.shadows), "SHADOW_FILTER": SHADOW_FILTERS[config.shadow_filter],
-                "POISSON_RADIUS": f"{float(config.shadow_filter_radius)!r}f"}
+                "POISSON_RADIUS": f"{float(config.shadow_filter_radius)!r}f", **view_defines(self.ortho)}
 
     def _build_kernel(self, device, config):
         return device.kernel("shade.cl", "shade", {**self._light_defines(config), "SSAO": int(config.ssao),
@@ -140,6 +143,7 @@ class ShadePass(RenderPass):
                     np.int32(self.tiles_x), res["srgb_lut"].data, *self._shadow_args(res),
                     *(((res["light_stencil"].data, np.int32(res["light_stencil_words"])) if self.stencil
                        else (self.no_list.data, np.int32(0)))),
+                    np.int32(res["surface_extras"]), res["tri_material"].data, res["materials"].data,
                     self.color.data, self.light_count.data, self.shadow.data, self.light_pairs.data)
         self.pair_sum(self.light_pairs, res["width"] * res["height"], self.queue)
 

@@ -57,7 +57,7 @@ def _may_overlap(a, b) -> bool:
 class ShadowPass(RenderPass):
     name = "shadow"
     inputs = ("positions", "triangles", "tri_material", "materials", "n_tris", "uvs", "texels", "srgb_lut",
-              "tex_infos", "tex_levels", "shadow_lights", "sun", "camera", "scene_bounds", "width", "height")
+              "tex_infos", "tex_levels", "colors", "n_vertices", "has_colors", "shadow_lights", "sun", "camera", "scene_bounds", "width", "height")
     outputs = ("shadow_atlas", "shadow_views", "shadow_layout", "shadow_view_count")
 
     def __init__(self, device, config):
@@ -123,7 +123,7 @@ class ShadowPass(RenderPass):
     def _view_inputs(self, res, v):
         """What a map's texels depend on; buffers are compared by identity (kept referenced)."""
         scene = tuple(res[name] for name in ("positions", "triangles", "tri_material", "materials", "texels",
-                                             "tex_infos", "tex_levels", "uvs"))
+                                             "tex_infos", "tex_levels", "uvs", "colors"))
         square = (self.layout.atlas_width, v.x0, v.y0, v.size)      # atlas row stride and square
         return (v.matrix.tobytes(), v.near, v.far, v.ortho, square), scene + (self.atlas,)
 

@@ -8,7 +8,7 @@ import numpy as np
 
 from .. import capabilities
 from .. import gbuffer as layout
-from .base import RenderPass, empty, round_up
+from .base import RenderPass, empty, round_up, view_defines
 
 PIXELS_PER_GROUP_X, GROUP_ROWS = 16, 8     # a work-group covers 16×8 pixels whatever VEC is
 
@@ -27,13 +27,14 @@ class SsaoPass(RenderPass):
     name = "ssao"
     inputs = ("gbuffer", "camera_params", "far", "tan_x", "tan_y")
 
-    def __init__(self, device, config):
+    def __init__(self, device, config, ortho: bool = False):
+        """ortho: an orthographic camera (ssao.cl ORTHO: parallel view rays)."""
         super().__init__(device, config)
         self.outputs = ("ao_raw",) if config.ssao_blur else ("ao",)
         self.vec = capabilities.pixel_vector_width(device.cl_device)
         wx, wy = work_group(self.vec)
         self.kernel = device.kernel("ssao.cl", "ssao", {**layout.kernel_defines(), "VEC": self.vec,
-                                                        "SSAO_WG_X": wx, "SSAO_WG_Y": wy})
+                                                        "SSAO_WG_X": wx, "SSAO_WG_Y": wy, **view_defines(ortho)})
 
     def allocate(self, width, height):
         self.ao = empty(self.queue, width * height, np.float32)

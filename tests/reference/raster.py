@@ -10,6 +10,10 @@ Deliberately out of scope (``ReferenceScopeError`` is raised instead of guessing
   * alpha MASK materials (§7);
   * a finite vertex whose clip coordinates overflow float32 (the contract does not say).
 
+Orthographic cameras (``camera.is_orthographic``, contract §11): the transform's z row is the
+view depth and w = 1; the near test is z - near; vertex depths are interpolated linearly in
+screen space (depth = Σ e_k·z_k / area) instead of perspective-correctly.
+
 Public API::
 
     rasterize(scene, camera, width, height) -> (triangle_id, depth, stats)
@@ -45,9 +49,10 @@ class Prims:
     tri: np.ndarray        # (N,) int64 original triangle id
     X: np.ndarray          # (N, 3) int64 24.8 fixed point
     Y: np.ndarray          # (N, 3) int64
-    w: np.ndarray          # (N, 3) float32 clip w
+    w: np.ndarray          # (N, 3) float32 clip w (orthographic: clip z, the vertex view depths)
     area: np.ndarray       # (N,) int64, > 0
     backface: np.ndarray   # (N,) bool (kept back-facing prim of a double-sided material)
+    ortho: bool = False    # orthographic camera: `w` holds depths interpolated linearly (§11)
 
     def __len__(self) -> int:
         return int(len(self.tri))
@@ -56,9 +61,18 @@ class Prims:
 # --------------------------------------------------------------------------------------
 # §1 transform
 # --------------------------------------------------------------------------------------
+def is_ortho(camera) -> bool:
+    return getattr(camera, "projection", "perspective") == "orthographic"
+
+
 def view_projection_f32(camera, width: int, height: int) -> np.ndarray:
-    """M = P·V in float64 on the host, cast to float32."""
-    return np.asarray(camera.view_projection(width, height), dtype=np.float64).astype(np.float32)
+    """M = P·V in float64 on the host, cast to float32. Orthographic (§11): P is glOrtho, so
+    row w is (0, 0, 0, 1); row z is replaced by the view depth, minus V's third row."""
+    M = np.array(camera.view_projection(width, height), dtype=np.float64)
+    if is_ortho(camera):
+        assert np.array_equal(M[3], [0.0, 0.0, 0.0, 1.0]), M[3]
+        M[2] = -np.asarray(camera.view_matrix(), np.float64)[2]
+    return M.astype(np.float32)
 
 
 def transform(positions: np.ndarray, M: np.ndarray) -> np.ndarray:
@@ -105,6 +119,8 @@ def clip_near(v: np.ndarray, d: np.ndarray) -> list[np.ndarray]:
 def setup(scene, camera, width: int, height: int) -> tuple[Prims, dict]:
     W, H = int(width), int(height)
     M = view_projection_f32(camera, W, H)
+    ortho = is_ortho(camera)
+    depth_row = 2 if ortho else 3                 # the clip component that is the view depth
     near = F32(camera.near)
     positions = np.asarray(scene.positions, np.float32)
     triangles = np.asarray(scene.triangles, np.int64).reshape(-1, 3)
@@ -128,7 +144,7 @@ def setup(scene, camera, width: int, height: int) -> tuple[Prims, dict]:
         v = clip_all[idx]                                   # (3, 4) float32
         if not np.isfinite(v).all():
             raise ReferenceScopeError(f"triangle {i}: finite vertices but non-finite clip coordinates")
-        d = v[:, 3] - near                                  # float32
+        d = v[:, depth_row] - near                          # float32
         inside = d >= F32(0)
         if inside.all():
             pieces = [v]
@@ -156,6 +172,7 @@ def setup(scene, camera, width: int, height: int) -> tuple[Prims, dict]:
     tri = np.asarray(prim_tri, np.int64)
     cv = np.stack(prim_v).astype(np.float32, copy=False)    # (N, 3, 4)
     w = cv[..., 3]
+    vertex_depth = cv[..., depth_row]                       # = w in perspective
 
     # §3 snapping (float32, order as written), then round half to even.
     with np.errstate(all="ignore"):
@@ -185,13 +202,14 @@ def setup(scene, camera, width: int, height: int) -> tuple[Prims, dict]:
     stats["degenerate"] = int(degenerate.sum())
     stats["culled_backface"] = int(culled_back.sum())
     keep = ~degenerate & ~culled_back
-    tri, X, Y, w, area = tri[keep], X[keep].copy(), Y[keep].copy(), w[keep].copy(), area[keep]
+    tri, X, Y, area = tri[keep], X[keep].copy(), Y[keep].copy(), area[keep]
+    w = vertex_depth[keep].copy()
     front = area < 0
     for arr in (X, Y, w):
         arr[front, 1], arr[front, 2] = arr[front, 2].copy(), arr[front, 1].copy()
     area = np.where(front, -area, area)
     stats["prims"] = int(len(tri))
-    prims = Prims(tri, X, Y, w, area, ~front)
+    prims = Prims(tri, X, Y, w, area, ~front, ortho)
     # Re-check orientation after the swap (area > 0 for every stored prim).
     chk = (X[:, 1] - X[:, 0]) * (Y[:, 2] - Y[:, 0]) - (X[:, 2] - X[:, 0]) * (Y[:, 1] - Y[:, 0])
     assert np.array_equal(chk, area) and (area > 0).all()
@@ -205,10 +223,11 @@ def _is_top_left(dX: int, dY: int) -> bool:
     return (dY == 0 and dX > 0) or dY < 0
 
 
-def prim_fragments(X, Y, w, area, width: int, height: int, far, sample=(0, 0)) -> tuple[np.ndarray, np.ndarray,
-                                                                                        np.ndarray]:
+def prim_fragments(X, Y, w, area, width: int, height: int, far, sample=(0, 0),
+                   ortho: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(rows, cols, depth float32) of the fragments of one prim, far-discarded; `sample` (dx, dy)
-    moves the sample point from the pixel centre 256*p+128 to 256*p+128+d (contract §10)."""
+    moves the sample point from the pixel centre 256*p+128 to 256*p+128+d (contract §10).
+    ortho: `w` are the vertex depths, interpolated linearly (contract §11)."""
     X = [int(v) for v in X]
     Y = [int(v) for v in Y]
     sx, sy = HALF + int(sample[0]), HALF + int(sample[1])
@@ -238,10 +257,14 @@ def prim_fragments(X, Y, w, area, width: int, height: int, far, sample=(0, 0)) -
     e1 = E[2][rows, cols].astype(np.float32)
     e2 = E[0][rows, cols].astype(np.float32)
     w = np.asarray(w, np.float32)
-    iw = F32(1.0) / w
-    num = (e0 * iw[0] + e1 * iw[1]) + e2 * iw[2]
     area_f = np.asarray([area], np.int64).astype(np.float32)[0]
-    depth = area_f / num
+    if ortho:
+        num = (e0 * w[0] + e1 * w[1]) + e2 * w[2]
+        depth = num / area_f
+    else:
+        iw = F32(1.0) / w
+        num = (e0 * iw[0] + e1 * iw[1]) + e2 * iw[2]
+        depth = area_f / num
     assert depth.dtype == np.float32
     keep = ~(depth > F32(far))
     return rows[keep] + y_lo, cols[keep] + x_lo, depth[keep]
@@ -252,7 +275,7 @@ def iter_fragments(prims: Prims, width: int, height: int, far,
     """(triangle id, prim index, rows, cols, depth) for every prim in setup order."""
     for n in range(len(prims)):
         rows, cols, depth = prim_fragments(prims.X[n], prims.Y[n], prims.w[n], prims.area[n], width, height, far,
-                                           sample)
+                                           sample, prims.ortho)
         if len(rows):
             yield int(prims.tri[n]), n, rows, cols, depth
 

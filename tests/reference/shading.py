@@ -5,6 +5,7 @@ G-buffer normal N, albedo, specular intensity s, specular power p and view depth
 
     P = eye + z·(F + x_ndc·tan(fov/2)·aspect·R + y_ndc·tan(fov/2)·U)       (R, U, -F) = camera.basis()
     x_ndc = (px + 0.5)/W·2 - 1,  y_ndc = 1 - (py + 0.5)/H·2,  V = normalize(eye - P)
+    orthographic camera: P = eye + x_ndc·ymag·aspect·R + y_ndc·ymag·U + z·F,  V = -F
     per light: Lv = position - P, d = |Lv|, L = Lv/d
         A = (1 - (d/r)²)³ if d < r else 0
         S = 1 (point) | t², t = clamp((dot(-L, dir) - cos_outer) / max(cos_inner - cos_outer, 1e-4), 0, 1) (spot)
@@ -21,6 +22,7 @@ differences from the kernels are float32 vs float64 arithmetic.
 Public API::
 
     world_positions(depth, camera) -> (H, W, 3) float64 (inf on background)
+    view_vectors(points, camera) -> (..., 3) unit vectors towards the viewer
     shade(normal, albedo, specular_intensity, specular_power, depth, triangle_id, camera, lights, ambient,
           details=False) -> (H, W, 3) float64 [, details dict]
     shade_frame(frame, camera, lights, ambient, details=False)
@@ -43,9 +45,26 @@ def _camera_frame(camera):
     return np.asarray(camera.eye, np.float64), right, up, -back
 
 
+def is_ortho(camera) -> bool:
+    return getattr(camera, "projection", "perspective") == "orthographic"
+
+
+def _eye_plane(camera, width: int, height: int) -> np.ndarray:
+    """(H, W, 3) orthographic: x_ndc·ymag·aspect·R + y_ndc·ymag·U at the pixel centres."""
+    _, right, up, _ = _camera_frame(camera)
+    t = float(camera.ymag)
+    aspect = width / height
+    x_ndc = (np.arange(width) + 0.5) / width * 2.0 - 1.0
+    y_ndc = 1.0 - (np.arange(height) + 0.5) / height * 2.0
+    return (x_ndc * t * aspect)[None, :, None] * right[None, None, :] + (y_ndc * t)[:, None, None] * up[None, None, :]
+
+
 def pixel_directions(camera, width: int, height: int) -> np.ndarray:
-    """(H, W, 3) un-normalized directions whose forward component is 1: P = eye + z·dir."""
-    eye, right, up, forward = _camera_frame(camera)
+    """(H, W, 3) un-normalized directions whose forward component is 1: P = origin + z·dir
+    (pixel_origins). Orthographic: the forward axis at every pixel."""
+    _, right, up, forward = _camera_frame(camera)
+    if is_ortho(camera):
+        return np.broadcast_to(forward, (height, width, 3)).copy()
     t = np.tan(np.radians(camera.fov_y_deg) / 2.0)
     aspect = width / height
     x_ndc = (np.arange(width) + 0.5) / width * 2.0 - 1.0
@@ -55,13 +74,30 @@ def pixel_directions(camera, width: int, height: int) -> np.ndarray:
             + (y_ndc * t)[:, None, None] * up[None, None, :])
 
 
+def pixel_origins(camera, width: int, height: int) -> np.ndarray:
+    """(H, W, 3) where each pixel's view ray has depth 0: the eye (perspective), the pixel's point
+    of the eye plane (orthographic)."""
+    eye = np.asarray(camera.eye, np.float64)
+    if is_ortho(camera):
+        return eye + _eye_plane(camera, width, height)
+    return np.broadcast_to(eye, (height, width, 3)).copy()
+
+
 def world_positions(depth: np.ndarray, camera) -> np.ndarray:
     """World position of every pixel from its view depth (float64; non-finite where depth is)."""
     depth = np.asarray(depth, np.float64)
     h, w = depth.shape
-    eye = np.asarray(camera.eye, np.float64)
     with np.errstate(invalid="ignore"):
-        return eye + depth[..., None] * pixel_directions(camera, w, h)
+        return pixel_origins(camera, w, h) + depth[..., None] * pixel_directions(camera, w, h)
+
+
+def view_vectors(points: np.ndarray, camera) -> np.ndarray:
+    """Unit vectors from `points` (..., 3) towards the viewer: to the eye, or -F (orthographic)."""
+    points = np.asarray(points, np.float64)
+    if is_ortho(camera):
+        _, _, _, forward = _camera_frame(camera)
+        return np.broadcast_to(-forward, points.shape).copy()
+    return _unit(np.asarray(camera.eye, np.float64) - points)
 
 
 def _unit(v: np.ndarray) -> np.ndarray:
@@ -106,7 +142,7 @@ def shade(normal, albedo, specular_intensity, specular_power, depth, triangle_id
     alb = np.asarray(albedo, np.float64)[fg]
     s = np.asarray(specular_intensity, np.float64)[fg]
     p = np.asarray(specular_power, np.float64)[fg]
-    V = _unit(np.asarray(camera.eye, np.float64) - P)
+    V = view_vectors(P, camera)
     diffuse = np.zeros_like(P)
     specular = np.zeros_like(P)
     min_abs = np.full(len(P), np.inf)

@@ -1,6 +1,6 @@
 """Ray-cast shadow truth for the shadow-map tests: is the segment from a G-buffer point to the
 light blocked? World positions are rebuilt from Frame.depth and the camera's pixel rays (as
-shade.cl does, in float64); rays go through trimesh (Embree when `embreex` is installed, else a
+shade.cl does, in float64; parallel rays from the eye plane for an orthographic camera); rays go through trimesh (Embree when `embreex` is installed, else a
 brute-force NumPy Möller-Trumbore for small scenes). Nothing here comes from clrender's maps.
 """
 from __future__ import annotations
@@ -11,13 +11,17 @@ import numpy as np
 def world_positions(frame, camera) -> np.ndarray:
     """(H, W, 3) float64 world positions of the G-buffer's pixels (NaN on background)."""
     h, w = frame.depth.shape
-    tan_y = np.tan(np.radians(camera.fov_y_deg) / 2)
+    ortho = getattr(camera, "projection", "perspective") == "orthographic"
+    tan_y = float(camera.ymag) if ortho else np.tan(np.radians(camera.fov_y_deg) / 2)   # ortho: half-height
     tan_x = tan_y * w / h
     right, up, back = camera.basis()
     xs = (np.arange(w) + 0.5) * (2.0 / w) - 1.0
     ys = 1.0 - (np.arange(h) + 0.5) * (2.0 / h)
-    rays = -back + xs[None, :, None] * right * tan_x + ys[:, None, None] * up * tan_y
     depth = np.where(np.isfinite(frame.depth), frame.depth, np.nan).astype(np.float64)
+    if ortho:       # parallel rays from the eye plane
+        origins = np.asarray(camera.eye) + xs[None, :, None] * right * tan_x + ys[:, None, None] * up * tan_y
+        return origins - depth[..., None] * back
+    rays = -back + xs[None, :, None] * right * tan_x + ys[:, None, None] * up * tan_y
     return np.asarray(camera.eye) + depth[..., None] * rays
 
 

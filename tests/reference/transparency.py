@@ -29,6 +29,10 @@ Brute force, built on the other references and on the spec's text, never on kern
   transparency holds the opaque surfaces only (opaque shading against that same reference is
   tested in test_lighting.py). `opaque_color_from_frame` does that.
 
+Orthographic cameras (raster contract §11): the raster reference's ortho path, screen-linear
+barycentrics (weights e_k, no division), positions on the pixels' parallel rays
+(shading.pixel_origins + z·forward) and V = -forward.
+
 Out of scope (ReferenceScopeError / not modelled): textures (alpha and colour), MASK materials
 (raster reference), the sun, refraction. Shadows only through a caller's `light_visibility`
 (e.g. ray casts), never shadow maps.
@@ -93,7 +97,7 @@ def blend_mask(scene) -> np.ndarray:
 def _subset(prims: Prims, keep: np.ndarray) -> tuple[Prims, np.ndarray]:
     idx = np.flatnonzero(keep)
     return Prims(prims.tri[idx], prims.X[idx], prims.Y[idx], prims.w[idx], prims.area[idx],
-                 prims.backface[idx]), idx
+                 prims.backface[idx], prims.ortho), idx
 
 
 def _edge_values(X, Y, rows, cols):
@@ -123,16 +127,18 @@ def _ray_barycentrics(tri_world: np.ndarray, eye: np.ndarray, dirs: np.ndarray) 
     return np.stack([1.0 - b1 - b2, b1, b2], axis=-1)
 
 
-def _clipped_vertex_barycentrics(clip: np.ndarray, near, prim_w: np.ndarray, back: bool) -> np.ndarray:
+def _clipped_vertex_barycentrics(clip: np.ndarray, near, prim_w: np.ndarray, back: bool,
+                                 depth_row: int = 3) -> np.ndarray:
     """(3, 3) barycentrics (rows: prim vertices) of a near-clipped piece: the contract's clip (§2,
     `raster.clip_near`, float32) of the clip-space vertices extended by their barycentric coordinates,
-    fan-triangulated; the piece is the one whose clip w are the prim's (in its stored vertex order)."""
+    fan-triangulated; the piece is the one whose clip w (orthographic: z, depth_row 2) are the prim's
+    (in its stored vertex order)."""
     ext = np.concatenate([clip.astype(np.float32), np.eye(3, dtype=np.float32)], axis=1)
-    poly = clip_near(ext, clip[:, 3].astype(np.float32) - F32(near))
+    poly = clip_near(ext, clip[:, depth_row].astype(np.float32) - F32(near))
     order = [0, 1, 2] if back else [0, 2, 1]
     for k in range(1, len(poly) - 1):
         piece = np.stack([poly[0], poly[k], poly[k + 1]])[order]
-        if np.array_equal(piece[:, 3], prim_w):
+        if np.array_equal(piece[:, depth_row], prim_w):
             return piece[:, 4:].astype(np.float64)
     raise ReferenceScopeError("a clipped prim matches no piece of the reference's near clip (guard band?)")
 
@@ -149,7 +155,8 @@ def fragments(scene, camera, width: int, height: int) -> Fragments:
     opaque_depth = np.full((H, W), np.inf, np.float32)
     opaque_id = np.full((H, W), -1, np.int32)
     for n in range(len(opaque)):
-        r, c, d = prim_fragments(opaque.X[n], opaque.Y[n], opaque.w[n], opaque.area[n], W, H, far)
+        r, c, d = prim_fragments(opaque.X[n], opaque.Y[n], opaque.w[n], opaque.area[n], W, H, far,
+                                 ortho=prims.ortho)
         win = d < opaque_depth[r, c]
         opaque_depth[r[win], c[win]] = d[win]
         opaque_id[r[win], c[win]] = opaque.tri[n]
@@ -159,13 +166,15 @@ def fragments(scene, camera, width: int, height: int) -> Fragments:
     M = view_projection_f32(camera, W, H)
     tris = np.asarray(scene.triangles, np.int64)
     clip_all = transform(np.asarray(scene.positions, np.float32), M)
-    clip_w = clip_all[:, 3]
+    depth_row = 2 if prims.ortho else 3              # the clip component the prims interpolate
+    clip_w = clip_all[:, depth_row]
     near = F32(camera.near)
     pieces = np.bincount(prims.tri, minlength=len(tris)) if len(prims) else np.zeros(len(tris), np.int64)
 
     out = {k: [] for k in ("row", "col", "z", "tri", "prim", "bary", "backface", "clipped")}
     for n in np.flatnonzero(prim_blend):
-        r, c, z = prim_fragments(prims.X[n], prims.Y[n], prims.w[n], prims.area[n], W, H, far)
+        r, c, z = prim_fragments(prims.X[n], prims.Y[n], prims.w[n], prims.area[n], W, H, far,
+                                 ortho=prims.ortho)
         front = z < opaque_depth[r, c]
         r, c, z = r[front], c[front], z[front]
         if not len(r):
@@ -176,10 +185,11 @@ def fragments(scene, camera, width: int, height: int) -> Fragments:
         whole = pieces[t] == 1 and np.array_equal(prims.w[n], clip_w[tris[t]][order])
         # Barycentrics of the prim's vertices in the input triangle: the identity (permuted) for a whole
         # triangle, else the ones the contract's clipper carries (§2), found by redoing the clip.
-        vb = np.eye(3)[order] if whole else _clipped_vertex_barycentrics(clip_all[tris[t]], near, prims.w[n], back)
+        vb = np.eye(3)[order] if whole else _clipped_vertex_barycentrics(clip_all[tris[t]], near, prims.w[n], back,
+                                                                         depth_row)
         E = _edge_values(prims.X[n], prims.Y[n], r, c)
-        wts = np.stack([E[1] / np.float64(prims.w[n][0]), E[2] / np.float64(prims.w[n][1]),
-                        E[0] / np.float64(prims.w[n][2])], axis=-1).astype(np.float64)
+        wd = np.ones(3) if prims.ortho else prims.w[n].astype(np.float64)     # ortho: screen-linear weights
+        wts = np.stack([E[1] / wd[0], E[2] / wd[1], E[0] / wd[2]], axis=-1).astype(np.float64)
         wts /= wts.sum(-1, keepdims=True)
         bary = wts @ vb
         out["row"].append(r)
@@ -198,11 +208,13 @@ def fragments(scene, camera, width: int, height: int) -> Fragments:
 
 
 def shade_fragments(points, normals, albedo, spec_intensity, spec_power, eye, lights, ambient,
-                    light_visibility=None):
+                    light_visibility=None, camera=None):
     """The shading model of reference/shading.py on flat arrays: (color (F, 3), min |N·L| (F,)).
-    light_visibility(points, light index) -> (F,) factor in [0, 1] (shadows), default 1."""
+    light_visibility(points, light index) -> (F,) factor in [0, 1] (shadows), default 1.
+    camera: when given, V comes from it (shading.view_vectors: -forward if orthographic)."""
     lights = np.asarray(lights, shading.structs.light_dtype).reshape(-1)
-    V = shading._unit(np.asarray(eye, np.float64) - points)
+    V = (shading.view_vectors(points, camera) if camera is not None
+         else shading._unit(np.asarray(eye, np.float64) - points))
     diffuse = np.zeros_like(points)
     specular = np.zeros_like(points)
     min_abs = np.full(len(points), np.inf)
@@ -257,6 +269,7 @@ def blend(scene, camera, width: int, height: int, opaque_color, lights=None, amb
     tris = np.asarray(scene.triangles, np.int64)
     eye = np.asarray(camera.eye, np.float64)
     dirs_img = shading.pixel_directions(camera, W, H)
+    origins_img = shading.pixel_origins(camera, W, H)       # the eye, or the eye plane (orthographic)
 
     acc = np.zeros((H * W, 3))
     T = np.ones(H * W)
@@ -282,9 +295,10 @@ def blend(scene, camera, width: int, height: int, opaque_color, lights=None, amb
              + b[:, 2:3] * normals_v[tris[t, 2]])
         n = shading._unit(n)
         n[fr.backface[sel]] *= -1.0
-        P = eye + fr.z[sel].astype(np.float64)[:, None] * dirs_img[fr.row[sel], fr.col[sel]]
+        P = (origins_img[fr.row[sel], fr.col[sel]]
+             + fr.z[sel].astype(np.float64)[:, None] * dirs_img[fr.row[sel], fr.col[sel]])
         c, min_abs = shade_fragments(P, n, albedo_m[m], spec_i_m[m], spec_p_m[m], eye, lights, ambient,
-                                     light_visibility)
+                                     light_visibility, camera)
         ambiguous[p] |= (min_abs < 1e-4) & (spec_i_m[m] > 0)
         a = alpha_m[m]
         acc[p] += (T[p] * a)[:, None] * c
