@@ -2,56 +2,240 @@
 
 `preview(name, data, background)` turns one AOV array into a viewable uint8 image (depth as
 gray, normals as RGB, triangle ids as stable hash colors, velocity as a color wheel, ...);
-`write_outputs(frame, image, aovs)` writes the image plus, per AOV, <stem>.<aov>.npy (exact),
-<stem>.<aov>.png (preview) and <stem>.<aov>.exr (float AOVs, when `exr_available()`).
-NumPy only at import; imageio is imported when something is written.
+`write_outputs(frame, image, aovs, bit_depth=8, exr=False)` writes the image (8- or 16-bit) plus,
+per AOV, <stem>.<aov>.npy (exact) and <stem>.<aov>.png (preview), and with `exr` one multi-layer
+<stem>.exr holding the colour and every requested float AOV. `write_video(path, frames, fps)`
+assembles frames into .mp4 (H.264) or .gif.
+
+Every file is written through `atomic_write`: to a temporary name in the destination folder,
+renamed into place (os.replace) only once complete, and removed on failure, so a killed or
+failed job never leaves a truncated file under a final name.
+
+Libraries (optional extra `clrender[outputs]`):
+- EXR: the maintained `OpenEXR` binding (Academy Software Foundation, PyPI `OpenEXR` >= 3.2).
+  It installs from PyPI as a self-contained manylinux/macOS/Windows wheel (~2 MB, NumPy only),
+  writes any number of named float32 channels, so one file holds every AOV as a layer
+  (color.R/G/B, depth.Z, normal.X/Y/Z, velocity.X/Y, ao, ...), and reads them back bit-exact.
+  imageio's EXR support goes through FreeImage, whose shared library imageio downloads at run
+  time (not from PyPI; nothing here may reach the network), and writes one RGB(A) layer per file.
+- Video: imageio-ffmpeg (a pip wheel bundling an ffmpeg with libx264) for .mp4; Pillow through
+  imageio for .gif.
+- 16-bit PNG: Pillow cannot write 16-bit RGB, so `_write_png16` encodes it with zlib (PNG is
+  simple: one IHDR, zlib-deflated filter-0 rows, IEND).
+NumPy only at import; imageio, OpenEXR and imageio-ffmpeg are imported when something is written.
 """
 from __future__ import annotations
 
 import os
+import struct
 import tempfile
-import warnings
+import zlib
 from pathlib import Path
-from typing import Sequence
+from typing import Callable, Sequence
 
 import numpy as np
 
-INT_AOVS = ("triangle_id", "fragment_count", "edges")     # integer AOVs: no .exr
+INT_AOVS = ("triangle_id", "fragment_count", "edges")     # integer AOVs: not in the EXR
+BIT_DEPTHS = (8, 16)
+VIDEO_SUFFIXES = (".mp4", ".gif")
+# EXR channel names per AOV (an AOV with one channel is named by itself: "ao", "light_count").
+EXR_CHANNELS = {"color": "RGB", "albedo": "RGB", "emissive": "RGB", "normal": "XYZ", "velocity": "XY",
+                "depth": "Z", "linear_depth": "Z"}
 
 
-# -- output files -----------------------------------------------------------------------------
+# -- atomic writes --------------------------------------------------------------------------
+def _umask() -> int:
+    if "umask" not in _UMASK:
+        _UMASK["umask"] = os.umask(0o022)
+        os.umask(_UMASK["umask"])
+    return _UMASK["umask"]
+
+
+_UMASK: dict = {}
+
+
+def atomic_write(path, writer: Callable[[str], object]) -> Path:
+    """Call `writer(tmp)` to write a temporary file in `path`'s folder (same suffix, so writers
+    that go by the extension still work), then rename it to `path` with os.replace. On any
+    failure (the writer's or the rename's) the temporary file is removed and the error raised;
+    `path` is then untouched: absent, or its previous complete content."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=f".tmp{path.suffix}", dir=path.parent)
+    os.close(fd)
+    try:
+        writer(tmp)
+        os.chmod(tmp, 0o666 & ~_umask())     # mkstemp makes 0600; give the usual permissions of a new file
+        os.replace(tmp, path)
+    except BaseException:
+        try:
+            os.unlink(tmp)
+        except FileNotFoundError:
+            pass
+        raise
+    return path
+
+
+def _imwrite(path, array, **kwargs) -> None:
+    import imageio.v3 as iio
+    path = Path(path)
+    atomic_write(path, lambda tmp: iio.imwrite(tmp, array, extension=path.suffix, **kwargs))
+
+
+def _save_npy(path, array) -> None:
+    def write(tmp):
+        with open(tmp, "wb") as f:          # a file object: np.save would append .npy to a name
+            np.save(f, array)
+    atomic_write(path, write)
+
+
+# -- the display image: 8 and 16 bits ---------------------------------------------------------
+def tonemap(color: np.ndarray, operator: str = "reinhard", exposure: float = 1.0) -> np.ndarray:
+    """kernels/tonemap.cl's `tonemap(c · exposure)` in float32: linear HDR -> linear [0, 1]."""
+    c = np.maximum(np.asarray(color, np.float32) * np.float32(exposure), np.float32(0.0))
+    if operator == "reinhard":
+        return c / (np.float32(1.0) + c)
+    if operator == "aces":
+        num = c * (np.float32(2.51) * c + np.float32(0.03))
+        den = c * (np.float32(2.43) * c + np.float32(0.59)) + np.float32(0.14)
+        return np.clip(num / den, 0.0, 1.0).astype(np.float32)
+    if operator == "clamp":
+        return np.clip(c, 0.0, 1.0).astype(np.float32)
+    raise ValueError(f"unknown tone-mapping operator {operator!r}")
+
+
+def display_linear(frame) -> np.ndarray:
+    """(H, W, 3) float32 in [0, 1]: the tone-mapped linear colour `frame.image` was sRGB-encoded
+    from. With LDR post effects it is the device's final LDR planes (`frame.ldr`); otherwise
+    tonemap.cl's operator applied here to `frame.color` (the HDR colour after bloom, motion blur
+    and the supersample resolve, which is exactly what the tone-mapping kernel read)."""
+    ldr = getattr(frame, "ldr", None)
+    if ldr is not None:
+        return np.clip(np.asarray(ldr, np.float32), 0.0, 1.0)
+    return tonemap(frame.color, getattr(frame, "tonemap", "reinhard"), getattr(frame, "exposure", 1.0))
+
+
+def linear_to_srgb16(x: np.ndarray) -> np.ndarray:
+    """Linear [0, 1] -> 16-bit sRGB codes (the exact curve, rounded; the 8-bit image rounds the same
+    curve to 255 levels, so round(v16 / 257) is within one code of it)."""
+    x = np.clip(np.nan_to_num(np.asarray(x, np.float64), nan=0.0), 0.0, 1.0)
+    s = np.where(x <= 0.0031308, x * 12.92, 1.055 * x ** (1 / 2.4) - 0.055)
+    return np.floor(s * 65535.0 + 0.5).astype(np.uint16)
+
+
+def image16(frame) -> np.ndarray:
+    """(H, W, 3) uint16 sRGB: the display image at 16 bits, from the float colour (not `frame.image`)."""
+    return linear_to_srgb16(display_linear(frame))
+
+
+def _write_png16(path, rgb16: np.ndarray) -> None:
+    """A 16-bit RGB (or grey) PNG: IHDR, one zlib stream of filter-0 big-endian rows, IEND."""
+    a = np.ascontiguousarray(rgb16, np.uint16)
+    if a.ndim == 2:
+        a = a[..., None]
+    h, w, c = a.shape
+    colour_type = {1: 0, 3: 2, 4: 6}[c]
+    rows = np.zeros((h, 1 + w * c * 2), np.uint8)
+    rows[:, 1:] = a.astype(">u2").reshape(h, w * c).view(np.uint8)
+
+    def chunk(kind: bytes, data: bytes) -> bytes:
+        return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data) & 0xFFFFFFFF)
+
+    data = (b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", struct.pack(">IIBBBBB", w, h, 16, colour_type, 0, 0, 0))
+            + chunk(b"IDAT", zlib.compress(rows.tobytes(), 6)) + chunk(b"IEND", b""))
+
+    def write(tmp):
+        with open(tmp, "wb") as f:
+            f.write(data)
+    atomic_write(path, write)
+
+
+def write_image(frame, path, bit_depth: int = 8) -> Path:
+    """Write the display image of `frame` to `path`: 8 bits (`frame.image`, any imageio format) or
+    16 bits (PNG only; `image16(frame)`)."""
+    path = Path(path)
+    if bit_depth not in BIT_DEPTHS:
+        raise ValueError(f"bit_depth must be 8 or 16, got {bit_depth!r}")
+    if bit_depth == 16:
+        if path.suffix.lower() != ".png":
+            raise ValueError(f"{path}: 16-bit images are written as PNG only (got {path.suffix!r})")
+        _write_png16(path, image16(frame))
+    else:
+        _imwrite(path, frame.image)
+    return path
+
+
+# -- multi-layer OpenEXR ----------------------------------------------------------------------
 _EXR_STATE: dict = {"available": None}
 
 
 def exr_available() -> bool:
-    """Whether imageio can write .exr with what is installed (probed once; never downloads)."""
+    """Whether the OpenEXR binding is installed (`pip install OpenEXR` or clrender[outputs])."""
     if _EXR_STATE["available"] is None:
-        import imageio.v3 as iio
-        saved = os.environ.get("IMAGEIO_NO_INTERNET")
-        os.environ["IMAGEIO_NO_INTERNET"] = "1"
         try:
-            with tempfile.TemporaryDirectory() as tmp, warnings.catch_warnings():
-                warnings.simplefilter("ignore")      # imageio's deprecated legacy plugins load here
-                iio.imwrite(os.path.join(tmp, "probe.exr"), np.zeros((2, 2, 3), np.float32), extension=".exr")
+            import OpenEXR  # noqa: F401
             _EXR_STATE["available"] = True
-        except Exception:
+        except ImportError:
             _EXR_STATE["available"] = False
-        finally:
-            if saved is None:
-                os.environ.pop("IMAGEIO_NO_INTERNET", None)
-            else:
-                os.environ["IMAGEIO_NO_INTERNET"] = saved
     return _EXR_STATE["available"]
+
+
+EXR_MISSING = "OpenEXR output needs the OpenEXR package: pip install OpenEXR (or clrender[outputs])"
+
+
+def exr_channels(name: str, data: np.ndarray) -> dict:
+    """The float32 EXR channels of AOV `name`: {"color.R": (H, W), ...}; one-channel AOVs are
+    named by themselves ("ao"); `shadow` (H, W, K) gives shadow.0 .. shadow.K-1."""
+    a = np.asarray(data)
+    if a.ndim == 2:
+        suffix = EXR_CHANNELS.get(name)
+        key = f"{name}.{suffix}" if suffix else name
+        return {key: np.ascontiguousarray(a, np.float32)}
+    letters = EXR_CHANNELS.get(name)
+    if letters is None or len(letters) != a.shape[2]:
+        letters = [str(i) for i in range(a.shape[2])]
+    return {f"{name}.{c}": np.ascontiguousarray(a[..., i], np.float32) for i, c in enumerate(letters)}
+
+
+def exr_layers(frame, aovs: Sequence[str]) -> list[str]:
+    """The AOVs the multi-layer EXR holds: colour first, then every requested float AOV."""
+    return list(dict.fromkeys(["color", *[a for a in aovs if a not in INT_AOVS and a != "image"]]))
+
+
+def write_exr(path, frame, aovs: Sequence[str] = ()) -> Path:
+    """One multi-layer OpenEXR file (float32, ZIP compression) with `exr_layers(frame, aovs)`."""
+    if not exr_available():
+        raise RuntimeError(EXR_MISSING)
+    import OpenEXR
+
+    channels: dict = {}
+    for aov in exr_layers(frame, aovs):
+        channels.update(exr_channels(aov, frame.aov(aov)))
+    header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
+    # OpenEXR.File replaces the dict's arrays by Channel objects: give it a copy.
+    atomic_write(path, lambda tmp: OpenEXR.File(header, dict(channels)).write(str(tmp)))
+    return Path(path)
+
+
+def read_exr(path) -> dict:
+    """{channel name: (H, W) array} of an EXR file, each channel as stored."""
+    import OpenEXR
+    with OpenEXR.File(str(path), separate_channels=True) as f:
+        return {name: np.array(ch.pixels) for name, ch in f.channels().items()}
+
+
+def exr_path(image) -> Path:
+    return Path(image).with_suffix(".exr")
 
 
 def aov_paths(image: Path, aovs: Sequence[str], exr: bool) -> list[Path]:
     """Every file `write_outputs` writes for `aovs` next to `image` (not `image` itself)."""
-    stem = image.with_suffix("")
+    stem = Path(image).with_suffix("")
     paths = []
     for aov in aovs:
         paths += [Path(f"{stem}.{aov}.npy"), Path(f"{stem}.{aov}.png")]
-        if exr and aov not in INT_AOVS:
-            paths.append(Path(f"{stem}.{aov}.exr"))
+    if exr:
+        paths.append(exr_path(image))
     return paths
 
 
@@ -142,29 +326,99 @@ def preview(name: str, data: np.ndarray, background: np.ndarray) -> np.ndarray:
     raise ValueError(f"no preview for AOV {name!r}")
 
 
-def write_outputs(frame, image: Path, aovs: Sequence[str]) -> None:
-    """Write `frame.image` to `image` (creating its folder), then `write_aovs` beside it."""
-    import imageio.v3 as iio
-
+def write_outputs(frame, image: Path, aovs: Sequence[str], bit_depth: int = 8, exr: bool = False) -> None:
+    """Write the display image of `frame` to `image` (creating its folder; `bit_depth` 8 or 16),
+    then `write_aovs` beside it, and with `exr` the multi-layer <stem>.exr (`write_exr`)."""
     image = Path(image)
-    image.parent.mkdir(parents=True, exist_ok=True)
-    iio.imwrite(image, frame.image)
+    write_image(frame, image, bit_depth)
     write_aovs(frame, image, aovs)
+    if exr:
+        write_exr(exr_path(image), frame, aovs)
 
 
 def write_aovs(frame, image: Path, aovs: Sequence[str]) -> None:
-    """Write each AOV of `frame` named in `aovs` next to `image`: <stem>.<aov>.npy (exact values),
-    <stem>.<aov>.png (`preview`) and, for float AOVs when `exr_available()`, <stem>.<aov>.exr."""
-    import imageio.v3 as iio
-
+    """Write each AOV of `frame` named in `aovs` next to `image`: <stem>.<aov>.npy (exact values)
+    and <stem>.<aov>.png (`preview`)."""
     stem = Path(image).with_suffix("")
     background = frame.triangle_id < 0
     for aov in aovs:
         data = np.asarray(frame.aov(aov))
-        np.save(f"{stem}.{aov}.npy", data)
-        iio.imwrite(f"{stem}.{aov}.png", preview(aov, data, background))
-        if aov not in INT_AOVS and exr_available() and not (data.ndim == 3 and data.shape[2] not in (1, 2, 3, 4)):
-            arr = data.astype(np.float32)
-            if arr.ndim == 3 and arr.shape[2] == 2:       # velocity: pad to RGB
-                arr = np.concatenate([arr, np.zeros_like(arr[..., :1])], -1)
-            iio.imwrite(f"{stem}.{aov}.exr", arr, extension=".exr")
+        _save_npy(f"{stem}.{aov}.npy", data)
+        _imwrite(f"{stem}.{aov}.png", preview(aov, data, background))
+
+
+# -- video ------------------------------------------------------------------------------------
+FFMPEG_MISSING = "writing .mp4 needs ffmpeg: pip install imageio-ffmpeg (or clrender[outputs])"
+
+
+def ffmpeg_available() -> bool:
+    try:
+        import imageio_ffmpeg
+        return bool(imageio_ffmpeg.get_ffmpeg_exe())
+    except Exception:          # not installed, or no binary for this platform
+        return False
+
+
+def check_video_path(path) -> None:
+    """Raise ValueError/RuntimeError (one line) if `path` cannot be written as a video here."""
+    suffix = Path(path).suffix.lower()
+    if suffix not in VIDEO_SUFFIXES:
+        raise ValueError(f"{path}: unsupported video type {suffix!r} (use {', '.join(VIDEO_SUFFIXES)})")
+    if suffix == ".mp4" and not ffmpeg_available():
+        raise RuntimeError(FFMPEG_MISSING)
+
+
+def _video_frame(item) -> np.ndarray:
+    """A frame as (H, W, 3) uint8: a Frame (its image), an array, or an image file path."""
+    if hasattr(item, "image") and not isinstance(item, np.ndarray):
+        a = item.image
+    elif isinstance(item, (str, os.PathLike)):
+        import imageio.v3 as iio
+        a = iio.imread(item)
+    else:
+        a = np.asarray(item)
+    if a.dtype == np.uint16:
+        a = (a.astype(np.uint32) * 255 + 32767) // 65535
+    if a.ndim == 2:
+        a = np.repeat(a[..., None], 3, -1)
+    if a.ndim != 3 or a.shape[2] not in (3, 4):
+        raise ValueError(f"video frame of shape {a.shape}: expected (H, W, 3)")
+    return np.ascontiguousarray(a[..., :3], np.uint8)
+
+
+def write_video(path, frames_or_paths, fps: float = 24, quality_crf: int = 18) -> Path:
+    """Assemble frames (Frames, (H, W, 3) arrays or image paths, in order) into `path`:
+    .mp4 as H.264 (yuv420p, CRF `quality_crf`) through imageio-ffmpeg, .gif through imageio (Pillow).
+    Every frame must have the same size; odd sizes are padded by one edge row/column for H.264."""
+    path = Path(path)
+    check_video_path(path)
+    if not (np.isfinite(fps) and fps > 0):
+        raise ValueError(f"fps must be positive, got {fps!r}")
+    frames = [_video_frame(f) for f in frames_or_paths]
+    if not frames:
+        raise ValueError("write_video: no frames")
+    shapes = {f.shape for f in frames}
+    if len(shapes) != 1:
+        raise ValueError(f"write_video: frames of different sizes {sorted(shapes)}")
+    h, w, _ = frames[0].shape
+    if path.suffix.lower() == ".gif":
+        _imwrite(path, np.stack(frames), duration=1000.0 / fps, loop=0)
+        return path
+    import imageio_ffmpeg
+
+    ph, pw = h + h % 2, w + w % 2                       # yuv420p needs even sizes
+
+    def write(tmp):
+        writer = imageio_ffmpeg.write_frames(str(tmp), (pw, ph), fps=fps, codec="libx264", pix_fmt_out="yuv420p",
+                                             quality=None, macro_block_size=1, output_params=["-crf", str(quality_crf)],
+                                             ffmpeg_log_level="error")
+        writer.send(None)                              # start ffmpeg
+        try:
+            for f in frames:
+                if (ph, pw) != (h, w):
+                    f = np.pad(f, ((0, ph - h), (0, pw - w), (0, 0)), mode="edge")
+                writer.send(np.ascontiguousarray(f))
+        finally:
+            writer.close()
+    atomic_write(path, write)
+    return path

@@ -35,7 +35,8 @@ from typing import Optional, Sequence
 
 import numpy as np
 
-from .aov_io import INT_AOVS, aov_paths, exr_available, write_outputs
+from .aov_io import INT_AOVS  # noqa: F401  (re-exported)
+from .aov_io import EXR_MISSING, aov_paths, check_video_path, exr_available, write_outputs, write_video
 from .aov_io import preview  # noqa: F401  (re-exported: `clrender.cli.preview` predates aov_io)
 
 PROG = "clrender"
@@ -158,8 +159,9 @@ def build_parser() -> argparse.ArgumentParser:
                                    "for one scene, or a directory (OUT/<scene-name>.png) or a pattern "
                                    "containing {name} (and optionally {index}) for several. AOVs are "
                                    "written next to each image as <out-stem>.<aov>.npy (exact) and "
-                                   "<out-stem>.<aov>.png (preview), plus .exr for float AOVs when an EXR "
-                                   "writer is installed.")
+                                   "<out-stem>.<aov>.png (preview); --exr adds one multi-layer <out-stem>.exr "
+                                   "(colour and every float AOV requested). Files are written to a temporary "
+                                   "name and renamed into place when complete.")
     r.add_argument("scenes", nargs="+", metavar="SCENE", help="scene file (.toml .gltf .glb .obj .ply .stl)")
     r.add_argument("-o", "--output", required=True, metavar="OUT",
                    help="image file, directory, or pattern containing {name}")
@@ -246,6 +248,13 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--ortho", type=_half_height, metavar="HALF_HEIGHT",
                    help="an orthographic camera whose view box is 2·HALF_HEIGHT world units tall (its width "
                         "follows the image aspect)")
+    r.add_argument("--bit-depth", type=int, choices=(8, 16), default=8, metavar="{8,16}",
+                   help="bits per channel of the image (16: PNG only, from the tone-mapped float colour; default 8)")
+    r.add_argument("--exr", action="store_true",
+                   help="also write <out-stem>.exr: float32 layers color.RGB and every float --aov (needs OpenEXR)")
+    r.add_argument("--video", metavar="FILE.mp4|FILE.gif",
+                   help="also assemble the rendered images, in order, into a video (.mp4 H.264 via imageio-ffmpeg, or .gif)")
+    r.add_argument("--fps", type=float, default=24.0, metavar="N", help="with --video: frames per second (default 24)")
     r.add_argument("-q", "--quiet", action="store_true", help="no progress or notes on stderr")
     r.set_defaults(func=cmd_render)
 
@@ -399,10 +408,15 @@ def _plan_outputs(scenes: list[str], out: str) -> list[Path]:
     return [target / f"{Path(scene).stem}.png" for scene in scenes]
 
 
-def _check_distinct(scenes: list[str], images: list[Path], aovs: Sequence[str], exr: bool) -> None:
+def _check_distinct(scenes: list[str], images: list[Path], aovs: Sequence[str], exr: bool,
+                    video: Optional[str] = None) -> None:
     """Refuse to write any file twice in one run, or over an input scene."""
     owner: dict[str, str] = {}
     inputs = {os.path.realpath(s): s for s in scenes}
+    if video is not None:
+        owner[os.path.realpath(video)] = "--video"
+        if os.path.realpath(video) in inputs:
+            raise CLIError(f"--video {video} would overwrite the input scene {video}")
     for scene, image in zip(scenes, images):
         for p in [image, *aov_paths(image, aovs, exr)]:
             key = os.path.realpath(p)
@@ -453,11 +467,27 @@ def cmd_render(args) -> int:
             raise CLIError(f"{flags.get(name, '--' + name.replace('_', '-'))}: {exc}") from None
     RenderConfig.from_options(**options)
     images = _plan_outputs(scenes, args.output)
-    exr = bool(args.aov) and any(a not in INT_AOVS for a in args.aov) and exr_available()
-    _check_distinct(scenes, images, args.aov, exr)
-    if args.aov and any(a not in INT_AOVS for a in args.aov) and not exr:
-        _note(args, f"{PROG}: note: no EXR writer installed (imageio has no .exr backend); "
-                    f"float AOVs are written as .npy and .png only")
+    bit_depth = getattr(args, "bit_depth", 8)
+    exr = bool(getattr(args, "exr", False))
+    video = getattr(args, "video", None)
+    fps = getattr(args, "fps", 24.0)
+    if bit_depth == 16:
+        for image in images:
+            if image.suffix.lower() != ".png":
+                raise CLIError(f"--bit-depth 16: {image} is not a .png (16-bit images are PNG only)")
+    if exr and not exr_available():
+        raise CLIError(f"--exr: {EXR_MISSING}")
+    if video is not None:
+        if not (np.isfinite(fps) and fps > 0):
+            raise CLIError(f"--fps: expected a positive number, got {fps!r}")
+        try:
+            check_video_path(video)
+        except (ValueError, RuntimeError) as exc:
+            raise CLIError(f"--video: {exc}") from None
+    elif getattr(args, "fps", 24.0) != 24.0:
+        _note(args, f"{PROG}: note: --fps has no effect without --video")
+    _check_distinct(scenes, images, args.aov, exr, video)
+    written: list[Path] = []
     info = default_device_info(args.device)
 
     renderers: dict = {}            # one per resolution (normally exactly one); kernels build once
@@ -475,7 +505,8 @@ def cmd_render(args) -> int:
             start = time.perf_counter()
             frame = renderer.render(scene, camera, previous_camera=_previous_camera(camera, args), time=args.time)
             wall_ms = (time.perf_counter() - start) * 1e3
-            write_outputs(frame, image, args.aov)
+            write_outputs(frame, image, args.aov, bit_depth=bit_depth, exr=exr)
+            written.append(image)
         except (CLIError, ValueError, OSError) as exc:     # SceneError is a ValueError
             if n == 1 or _debug():
                 raise
@@ -488,6 +519,12 @@ def cmd_render(args) -> int:
         _note(args, f"[{index}/{n}] {scene_path} -> {image} ({wall_ms:.1f} ms, "
                     f"{scene.triangle_count} triangles, {width}x{height})")
         _note(args, "    " + _format_stats(frame.stats))
+    if video is not None and written:
+        try:
+            write_video(video, written, fps)
+        except (ValueError, RuntimeError, OSError) as exc:
+            raise CLIError(f"--video {video}: {_one_line(exc)}") from None
+        _note(args, f"{PROG}: {len(written)} frame(s) -> {video} ({fps:g} fps)")
     if failures:
         print(f"{PROG}: error: {failures} of {n} scenes failed", file=sys.stderr, flush=True)
         return 1

@@ -225,6 +225,9 @@ class Pipeline:
             "edges": (res["edges"].get(queue=self.queue).reshape(height, width) if self.config.edge_aa
                       else np.zeros((height, width), np.uint8)),
         }
+        if self.config.ldr_effects:              # the final LDR planes the image was encoded from
+            outputs["ldr"] = np.moveaxis(res["ldr"].get(queue=self.queue)[: 3 * width * height]
+                                         .reshape(3, height, width), 0, -1).copy()
         if transparent:
             outputs["fragment_count"] = internal(self.transparency[0].frag_count)[0]
             n = iw * ih                             # only the transmittance plane of the layers

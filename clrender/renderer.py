@@ -222,6 +222,12 @@ class Frame:
     transmittance: np.ndarray   # (H, W) float32 what the transparent layers leave of what lies behind (1 = nothing)
     edges: np.ndarray           # (H, W) uint8 1 where edge_aa marked an edge pixel (all 0 without edge_aa)
     stats: dict = field(default_factory=dict)
+    # What `image` was encoded from, for deeper outputs (aov_io.display_linear, 16-bit PNG): the
+    # tone-mapping operator and exposure, and with LDR post effects (edge AA, FXAA, hatching) the
+    # final tone-mapped linear planes (H, W, 3) float32 in [0, 1] read back from the device.
+    tonemap: str = "reinhard"
+    exposure: float = 1.0
+    ldr: Optional[np.ndarray] = None
 
     AOV_NAMES = ("color", "light_count", "depth", "linear_depth", "normal", "albedo", "triangle_id", "velocity",
                  "specular_intensity", "specular_power", "emissive", "occlusion", "ao", "shadow", "fragment_count", "transmittance", "edges",
@@ -358,4 +364,5 @@ class Renderer:
         return Frame(gbuffer=out["gbuffer"], far=camera.far, color=out["color"], light_count=out["light_count"],
                      image=np.ascontiguousarray(out["image"]), ao=out["ao"], shadow=out["shadow"],
                      fragment_count=out["fragment_count"], transmittance=out["transmittance"], edges=out["edges"],
-                     stats=stats)
+                     stats=stats, tonemap=self.config.tonemap, exposure=float(self.config.exposure),
+                     ldr=out.get("ldr"))

@@ -115,6 +115,7 @@ class Scene:
     tangents: Optional[np.ndarray] = None       # (V, 4) float32 world-space unit tangent + handedness w (±1);
                                                 # None: generated at upload if a material has a normal map
     extra_uvs: Optional[np.ndarray] = None      # (K, V, 2) float32: TEXCOORD_1 .. TEXCOORD_K; None: K = 0
+    animation: Optional[object] = None          # clrender.animation.Animation (glTF animations); None: static
 
     def __post_init__(self):
         self.positions = np.ascontiguousarray(self.positions, dtype=np.float32).reshape(-1, 3)
@@ -297,6 +298,15 @@ class Scene:
         self.positions, self.normals, self.triangles = positions, normals, triangles
         # No vertex moved: no buffer of previous positions at all (frames exactly as without motion).
         self.previous_positions = None if np.array_equal(previous_positions, positions) else previous_positions
+
+    def pose(self, t: float, dt: Optional[float] = None) -> Optional[Camera]:
+        """Pose the scene in place at time `t` (seconds) from its `animation` (clrender.animation):
+        animated meshes by set_transform (motion over `dt` for the velocity AOV), the camera and
+        the lights. Returns the camera at t - dt to pass as `previous_camera` (None when dt is
+        None). A static scene (animation None) is left as it is."""
+        if self.animation is None:
+            return None if dt is None else self.camera
+        return self.animation.pose(self, t, dt)
 
     def _mesh_index(self, mesh) -> int:
         if isinstance(mesh, str):

@@ -58,7 +58,8 @@ def write_gltf(path: Path, primitives: Optional[list] = None, materials: Optiona
     `meshes` = several lists of primitives), `materials` as JSON, `images` as (H, W, 4) uint8 arrays
     saved as PNG (`<stem>_image<i>.png`), `textures` JSON (default: texture i = image i, no
     sampler), `samplers` JSON; `top_level` keys (animations, skins, extensionsUsed,
-    extensionsRequired, ...) are copied into the document; `edit(doc)` may change it last."""
+    extensionsRequired, ...) are copied into the document (an animation sampler's `input` /
+    `output` given as an array becomes an accessor); `edit(doc)` may change it last."""
     import imageio.v3 as iio
 
     path = Path(path)
@@ -117,6 +118,11 @@ def write_gltf(path: Path, primitives: Optional[list] = None, materials: Optiona
         doc["textures"] = textures
     if samplers is not None:
         doc["samplers"] = samplers
+    for anim in top_level.get("animations", []):   # sampler input/output arrays become accessors
+        for sampler in anim.get("samplers", []):
+            for key in ("input", "output"):
+                if isinstance(sampler.get(key), np.ndarray):
+                    sampler[key] = add(sampler[key])
     doc.update(top_level)
     doc["accessors"], doc["bufferViews"] = accessors, views
     doc["buffers"] = [{"byteLength": len(blob),

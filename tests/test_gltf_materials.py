@@ -353,8 +353,14 @@ def test_mikktspace_agreement(rel, meshes, count, left_out, median, p95, worst, 
 
 
 # -- unsupported features ------------------------------------------------------------------------------------
+def weights_animation() -> dict:
+    """An animation of node 0's morph target weights (ignored, warned)."""
+    return {"channels": [{"sampler": 0, "target": {"node": 0, "path": "weights"}}],
+            "samplers": [{"input": np.float32([0, 1]), "output": np.float32([0, 1])}]}
+
+
 def test_one_warning_per_file_and_feature(tmp_path):
-    """Skins, morph targets, animations, unknown extensions (in extensionsUsed, on materials, on
+    """Skins, morph targets, animated morph weights, unknown extensions (in extensionsUsed, on materials, on
     nodes), point/line and fan primitives, COLOR_1, nearest magnification: each used twice, each
     warned exactly once naming the file and the feature; the triangles still load."""
     joints = np.zeros((4, 4), np.uint8)
@@ -370,7 +376,7 @@ def test_one_warning_per_file_and_feature(tmp_path):
     nodes = [{"mesh": 0, "skin": 0, "extensions": {"EXT_node_magic": {}}}, {"mesh": 0, "skin": 0}]
     path = write_gltf(tmp_path / "features.gltf", prims, mats, images=[image(1)], nodes=nodes,
                       samplers=[{"magFilter": 9728}], textures=[{"source": 0, "sampler": 0}],
-                      skins=[{"joints": [0]}], animations=[{"channels": [], "samplers": []}] * 2,
+                      skins=[{"joints": [0]}], animations=[weights_animation(), weights_animation()],
                       extensionsUsed=["KHR_materials_specular", "KHR_materials_unlit", "VENDOR_thing",
                                       "EXT_node_magic", "KHR_materials_variants"])
     with warnings.catch_warnings(record=True) as record:

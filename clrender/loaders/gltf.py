@@ -33,8 +33,11 @@ Everything trimesh gets wrong or loses is read from the glTF JSON and buffers di
   normalTexture and no TANGENT gets `clrender.tangents.generate_tangents` of its world-space
   positions and normals and of the uv set the normal map reads; other primitives (0, 0, 0, 1)
   ("no tangent"); None when no primitive has or needs tangents;
-* what is not rendered -- skins, morph targets, animations, point/line/fan primitives, COLOR_n for
-  n >= 1, non-default scenes, nearest magnification, any extension outside
+* animations (translation / rotation / scale channels) -> `Scene.animation`, a
+  `clrender.animation.Animation` (None for static files) that `Scene.pose(t)` applies; the scene
+  loads at the nodes' static transforms;
+* what is not rendered -- skins, morph targets, animated morph weights, point/line/fan primitives,
+  COLOR_n for n >= 1, non-default scenes, nearest magnification, any extension outside
   `gltf_document.SUPPORTED_EXTENSIONS` (in extensionsUsed or on any object) -- is collected while
   loading and warned ONCE per file and feature at the end; the rest loads. An extension outside
   that set in extensionsRequired is a SceneError naming it;
@@ -65,6 +68,7 @@ from typing import Optional
 
 import numpy as np
 
+from .. import animation as gltf_animation
 from ..camera import Camera
 from ..scene import Material, Scene, SceneError
 from .common import Piece, assemble, check_faces, trimesh_load, trimesh_vertex_normals, world_piece
@@ -300,8 +304,6 @@ def _unsupported_features(doc: Document) -> dict[str, str]:
         features["skins (skinned meshes)"] = "drawn unskinned, with their nodes' transforms"
     if any("targets" in prim for prim in prims) or any("weights" in mesh for mesh in doc.list("meshes")):
         features["morph targets"] = "drawn with their base geometry"
-    if doc.list("animations"):
-        features["animations"] = "drawn at the nodes' static transforms"
     extra_colors = sorted(a for a in attrs if a.startswith("COLOR_") and a != "COLOR_0")
     if extra_colors:
         features[f"vertex colour sets beyond COLOR_0 ({', '.join(extra_colors)})"] = "ignored"
@@ -331,6 +333,7 @@ def load_gltf(path) -> Scene:
     order = _traversal(doc)
     features = _unsupported_features(doc)      # {feature: what happens instead}, warned once each at the end
     materials, textures = load_materials(doc, features)
+    animation = gltf_animation.from_document(doc, order, features)   # None: static
 
     tm_scene = _trimesh_scene(doc)
     prim_names = _primitive_names(doc)
@@ -405,11 +408,16 @@ def load_gltf(path) -> Scene:
             # a normal map without TANGENT: generated (clrender.tangents) from the set the map reads
             material = materials[mat]
             tangent_uv = material.normal_uv.texcoord if material.normal_texture >= 0 and tangents is None else None
+            if animation is not None:   # remember the mesh's node; a singular rest matrix builds it unposed
+                matrix = animation.add_mesh(len(pieces), n, matrix)
             pieces.append(world_piece(name, matrix, positions, faces, mat, normals, uvs, colors, tangents,
                                       extra_uvs, tangent_uv))
 
     scene = assemble(pieces, materials, textures, str(path))
     scene.camera = _camera(doc, order, tm_scene, scene)
+    if animation is not None:
+        gltf_animation.bind(animation, doc, order, scene)
+        scene.animation = animation
     _lights(doc, order, scene)
     _warn_features(doc, features)
     return scene
