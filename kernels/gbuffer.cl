@@ -11,8 +11,9 @@
  * projected by the previous frame's view-projection. Everything is packed per
  * the layout table (clrender/gbuffer.py, kernels/gbuffer.h; gbuffer_pack.h).
  * GB_WRITE (bit i: plane i) selects the planes written: all for the deferred pipeline; the
- * light pre-pass's thin G-buffer skips albedo/specular intensity (built with SURFACE_TEXTURES
- * 0: no texture read); light-indexed writes depth and id only, and evaluates no surface.
+ * light pre-pass's thin G-buffer skips albedo/specular intensity and emission/occlusion (built
+ * with SURFACE_TEXTURES 0 and SURFACE_EXTRAS 0: none of those textures is read); light-indexed
+ * writes depth and id only, and evaluates no surface.
  *
  * Buffers: vis_depth float[W·H], vis_prim int[W·H]; the scene (SCENE_PARAMS, surface_vec.h:
  *          prims Prim[*], positions/normals float[3V], uv sets float[K][2V], triangles int[3T],

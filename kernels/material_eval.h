@@ -196,6 +196,7 @@ static void evaluate_material(const SceneV* sc, const BaryV* b, intV fg, Surface
     apply_normal_map(sc, b, mat, flags, fg & !unlit, &base, sf);
 
     floatV occ = 1.0f;
+#if SURFACE_EXTRAS
     const intV tex_occ = GATHER_M(intV, materials, mat, slots[SLOT_OCCLUSION].texture);
     intV want = fg & (tex_occ >= 0);
 #if VEC == 1
@@ -221,13 +222,16 @@ static void evaluate_material(const SceneV* sc, const BaryV* b, intV fg, Surface
         const floatV strength = GATHER_M(floatV, materials, mat, occlusion_strength);
         occ = select(occ, 1.0f + strength * (t.r - 1.0f), hit);
     }
+#endif
     floatV er = GATHER_M(floatV, materials, mat, emissive[0]);
     floatV eg = GATHER_M(floatV, materials, mat, emissive[1]);
     floatV eb = GATHER_M(floatV, materials, mat, emissive[2]);
+#if SURFACE_EXTRAS
     {
         const rgbaV t = sample_slot_shared(sc, b, mat, flags, SLOT_EMISSIVE, fg, &base, &hit);
         er = select(er, er * t.r, hit); eg = select(eg, eg * t.g, hit); eb = select(eb, eb * t.b, hit);
     }
+#endif
     sf->mat_flags = flags;
     sf->r = ar; sf->g = ag; sf->b = ab; sf->a = ca;
     sf->spec_i = spec_i; sf->spec_p = spec_p;

@@ -18,6 +18,9 @@
 #ifndef SURFACE_TEXTURES
 #define SURFACE_TEXTURES 1        /* 0: base colour = material factor only, no texture read */
 #endif
+#ifndef SURFACE_EXTRAS
+#define SURFACE_EXTRAS 1          /* 0: emissive and occlusion left at their factors, no texture read */
+#endif
 
 typedef struct { floatV x, y, z; } vec3V;
 

@@ -25,7 +25,8 @@ class GBufferPass(RenderPass):
         self.vec = capabilities.pixel_vector_width(device.cl_device)
         self.planes = tuple(planes)
         defines = {**layout.kernel_defines(), "VEC": self.vec, "GB_WRITE": layout.plane_mask(self.planes),
-                   "SURFACE_TEXTURES": int("albedo_spec" in self.planes), **view_defines(ortho)}
+                   "SURFACE_TEXTURES": int("albedo_spec" in self.planes),
+                   "SURFACE_EXTRAS": int("emissive_occlusion" in self.planes), **view_defines(ortho)}
         self.kernel = device.kernel("gbuffer.cl", "gbuffer_resolve", defines)
 
     def allocate(self, width, height):
