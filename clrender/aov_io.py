@@ -76,9 +76,16 @@ def atomic_write(path, writer: Callable[[str], object]) -> Path:
     return path
 
 
+# zlib level of 8-bit PNGs: 3 encodes a 640x360 frame in 14 ms against 45 ms at Pillow's default 6,
+# for files 12 % larger (a batch job's frames were spending longer in PNG encoding than rendering).
+PNG_COMPRESS_LEVEL = 3
+
+
 def _imwrite(path, array, **kwargs) -> None:
     import imageio.v3 as iio
     path = Path(path)
+    if path.suffix.lower() == ".png":
+        kwargs.setdefault("compress_level", PNG_COMPRESS_LEVEL)
     atomic_write(path, lambda tmp: iio.imwrite(tmp, array, extension=path.suffix, **kwargs))
 
 

@@ -150,3 +150,34 @@ class Camera:
         """(right, up, back) unit vectors in world space: the rows of the view rotation."""
         v = self.view_matrix()
         return v[0, :3].copy(), v[1, :3].copy(), v[2, :3].copy()
+
+
+def with_overrides(cam: Camera, bounds, eye=None, target=None, fov=None, ortho=None) -> Camera:
+    """`cam` with a new eye, target, vertical fov (perspective) or half-height (orthographic), as
+    the CLI's --camera-eye/--camera-target/--fov/--ortho give them; None keeps the camera's own.
+    A moved camera's far plane grows to keep the scene (`bounds`: (lo, hi)) inside it. ValueError
+    for contradictory or degenerate overrides."""
+    if fov is not None and ortho is not None:
+        raise ValueError("--fov (perspective) and --ortho (orthographic) exclude each other")
+    if eye is None and target is None and fov is None and ortho is None:
+        return cam
+    eye = cam.eye if eye is None else eye
+    target = cam.target if target is None else target
+    if ortho is None and fov is None and cam.is_orthographic:
+        ortho = cam.ymag                          # the scene's orthographic camera, moved
+    fov = cam.fov_y_deg if fov is None else fov
+    far = cam.far
+    if eye is not cam.eye or target is not cam.target:
+        lo, hi = np.asarray(bounds, np.float64)
+        reach = float(np.linalg.norm(np.subtract((lo + hi) / 2, eye)) + np.linalg.norm(hi - lo) / 2)
+        far = max(far, reach * 1.5)
+    up = np.asarray(cam.up, np.float64)
+    forward = np.subtract(target, eye)
+    if np.linalg.norm(forward) == 0.0:
+        raise ValueError(f"camera eye and target are the same point {tuple(eye)}")
+    if np.linalg.norm(np.cross(forward, up)) < 1e-6 * np.linalg.norm(forward):
+        up = np.array([0.0, 0.0, -1.0])          # looking straight up or down
+    if ortho is not None:
+        xmag = cam.xmag * ortho / cam.ymag if cam.is_orthographic else ortho
+        return Camera.orthographic(eye, target, tuple(up), xmag, ortho, near=min(cam.near, far * 0.5), far=far)
+    return Camera.look_at(eye, target, tuple(up), fov, near=min(cam.near, far * 0.5), far=far)

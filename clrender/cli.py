@@ -1,4 +1,5 @@
-"""Command line: `clrender render | devices | info`, a thin loop over the library API.
+"""Command line: `clrender render | devices | check | info`, a thin loop over the library API
+(the grammar: clrender/cli_parser.py; frames and clusters: clrender/cli_batch.py).
 
     clrender render SCENE [SCENE ...] -o OUT [--width W --height H --device NAME --tile-size N
                     --pipeline deferred|light_prepass|light_indexed --msaa N
@@ -12,7 +13,9 @@
                     --motion-blur --shutter F --motion-blur-samples N --previous-eye x,y,z --previous-target x,y,z
                     --hatching --hatching-scale S --hatching-saturation S
                     --aov depth,normal,... --camera-eye x,y,z --camera-target x,y,z --fov DEG
-                    --ortho HALF_HEIGHT --quiet]
+                    --ortho HALF_HEIGHT --bit-depth 8|16 --exr --video FILE --fps N --quiet
+                    --frames A:B[:STEP]|N|all --time-range T0:T1 --resume --workers N
+                    --scheduler ADDRESS --resources NAME=N]
     clrender devices [--json]
     clrender info SCENE [--json]
     clrender check [--device NAME|all] [--scene S] [--json report.json]
@@ -22,10 +25,8 @@ CLRENDER_DEBUG=1 to get the traceback instead.
 """
 from __future__ import annotations
 
-import argparse
 import dataclasses
 import json
-import math
 import os
 import sys
 import time
@@ -38,249 +39,11 @@ import numpy as np
 from .aov_io import INT_AOVS  # noqa: F401  (re-exported)
 from .aov_io import EXR_MISSING, aov_paths, check_video_path, exr_available, write_outputs, write_video
 from .aov_io import preview  # noqa: F401  (re-exported: `clrender.cli.preview` predates aov_io)
+from .batch import scene_config, scene_size
 
-PROG = "clrender"
-ENV_DEBUG = "CLRENDER_DEBUG"
-DEFAULT_SIZE = (1280, 720)
-IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg")
-# AOVs the CLI writes: every Frame AOV but `image`, which is the main output.
-def _aov_names():
-    from .renderer import Frame
-    return tuple(n for n in Frame.AOV_NAMES if n != "image")
-
-
-AOVS = _aov_names()
-
-
-class CLIError(Exception):
-    """A user-facing error: printed as one line, exit status `code`."""
-
-    def __init__(self, message: str, code: int = 1):
-        super().__init__(message)
-        self.code = code
-
-
-class _Parser(argparse.ArgumentParser):
-    """argparse that reports bad usage as a CLIError (one line) instead of usage + exit."""
-
-    def error(self, message):
-        raise CLIError(f"{message} (see `{self.prog} --help`)", code=2)
-
-
-# ---------------------------------------------------------------------------------------------
-# argument types
-def _vec3(text: str) -> tuple[float, float, float]:
-    parts = [p.strip() for p in text.replace(";", ",").split(",")]
-    try:
-        values = tuple(float(p) for p in parts)
-    except ValueError:
-        values = ()
-    if len(values) != 3 or not all(math.isfinite(v) for v in values):
-        raise argparse.ArgumentTypeError(f"expected three finite numbers x,y,z, got {text!r}")
-    return values
-
-
-def _positive_int(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}") from None
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}")
-    return value
-
-
-def _non_negative_int(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected an integer >= 0, got {text!r}") from None
-    if value < 0:
-        raise argparse.ArgumentTypeError(f"expected an integer >= 0, got {text!r}")
-    return value
-
-
-def _fov(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        value = float("nan")
-    if not 0.0 < value < 180.0:
-        raise argparse.ArgumentTypeError(f"expected degrees in (0, 180), got {text!r}")
-    return value
-
-
-def _half_height(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        value = float("nan")
-    if not (value > 0.0 and np.isfinite(value)):
-        raise argparse.ArgumentTypeError(f"expected a positive half-height in world units, got {text!r}")
-    return value
-
-
-def _aov_list(text: str) -> list[str]:
-    names = [n.strip().lower() for n in text.split(",") if n.strip()]
-    if not names:
-        raise argparse.ArgumentTypeError("expected a comma-separated list of AOV names")
-    unknown = [n for n in names if n not in AOVS]
-    if unknown:
-        raise argparse.ArgumentTypeError(f"unknown AOV {unknown[0]!r} (available: {', '.join(AOVS)})")
-    return list(dict.fromkeys(names))
-
-
-def _join_vector_options(argv: list[str]) -> list[str]:
-    """`--camera-eye -1,2,3` -> `--camera-eye=-1,2,3`: argparse would read `-1,2,3` as an option."""
-    out, i = [], 0
-    while i < len(argv):
-        arg = argv[i]
-        if arg in ("--camera-eye", "--camera-target") and i + 1 < len(argv) and argv[i + 1].startswith("-") \
-                and argv[i + 1][1:2] in "0123456789.":
-            out.append(f"{arg}={argv[i + 1]}")
-            i += 2
-            continue
-        out.append(arg)
-        i += 1
-    return out
-
-
-def build_parser() -> argparse.ArgumentParser:
-    from .renderer import (LIGHT_BUFFER_PRECISION, LIGHT_BUFFER_SPECULAR, LIGHT_CULLING, PIPELINES,
-                           TRANSPARENCY)
-
-    parser = _Parser(prog=PROG, description="clrender: a tiled deferred renderer whose pixels are "
-                                            "computed by OpenCL kernels.")
-    sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
-    sub.required = True
-
-    r = sub.add_parser("render", help="render scene files to images (and AOVs)",
-                       description="Render each SCENE with one renderer. OUT is an image file (.png/.jpg) "
-                                   "for one scene, or a directory (OUT/<scene-name>.png) or a pattern "
-                                   "containing {name} (and optionally {index}) for several. AOVs are "
-                                   "written next to each image as <out-stem>.<aov>.npy (exact) and "
-                                   "<out-stem>.<aov>.png (preview); --exr adds one multi-layer <out-stem>.exr "
-                                   "(colour and every float AOV requested). Files are written to a temporary "
-                                   "name and renamed into place when complete.")
-    r.add_argument("scenes", nargs="+", metavar="SCENE", help="scene file (.toml .gltf .glb .obj .ply .stl)")
-    r.add_argument("-o", "--output", required=True, metavar="OUT",
-                   help="image file, directory, or pattern containing {name}")
-    r.add_argument("--width", type=_positive_int, metavar="W",
-                   help="image width (default: the scene's [render] width, else 1280)")
-    r.add_argument("--height", type=_positive_int, metavar="H",
-                   help="image height (default: the scene's [render] height, else 720)")
-    r.add_argument("--device", metavar="NAME",
-                   help="OpenCL device: a name substring or P:D (default: $CLRENDER_DEVICE, else a GPU, "
-                        "else PoCL); see `clrender devices`")
-    r.add_argument("--tile-size", type=int, metavar="N", help="raster tile size in pixels: 8, 16 or 32 (default 8)")
-    r.add_argument("--light-tile-size", type=int, metavar="N", help="light-culling tile size: 8, 16 or 32 (default 32)")
-    r.add_argument("--light-culling", choices=LIGHT_CULLING,
-                   help="light lists per tile: culled against tile frusta, every light, each light's screen "
-                        "quad, or tiled lists with per-pixel stencil bits (default tiled; "
-                        "docs/light_accumulation.md)")
-    r.add_argument("--pipeline", choices=PIPELINES,
-                   help="renderer variant: deferred shading, Engel's light pre-pass, or Trebilco's light-indexed "
-                        "deferred (default deferred; docs/variants.md)")
-    r.add_argument("--msaa", type=int, metavar="N",
-                   help="with --pipeline light_prepass: colour sub-samples per pixel, 1, 2, 4 or 8 (default 1)")
-    r.add_argument("--light-buffer-specular", choices=LIGHT_BUFFER_SPECULAR,
-                   help="with --pipeline light_prepass: specular RGB, or its luminance coloured by the diffuse "
-                        "light (default rgb)")
-    r.add_argument("--light-buffer-precision", choices=LIGHT_BUFFER_PRECISION,
-                   help="with --pipeline light_prepass: light buffer of floats or halves (default float32)")
-    r.add_argument("--tonemap", choices=("reinhard", "aces", "clamp"), help="tone-mapping operator (default reinhard)")
-    r.add_argument("--exposure", type=float, metavar="X", help="exposure multiplier before tone mapping (default 1)")
-    r.add_argument("--ssao", action="store_true", default=None, help="screen-space ambient occlusion (default off)")
-    r.add_argument("--ssao-radius", type=float, metavar="R", help="with --ssao: its radius in world units (default 1)")
-    r.add_argument("--ssao-strength", type=float, metavar="S", help="with --ssao: ao = 1 - S·occlusion (default 1)")
-    r.add_argument("--transparency", choices=TRANSPARENCY,
-                   help="how BLEND materials are drawn: per-pixel sorted fragment lists, depth peeling, or "
-                        "a stipple pattern in the G-buffer (default abuffer)")
-    r.add_argument("--peel-layers", type=_positive_int, metavar="N",
-                   help="with --transparency depth_peeling: layers peeled per pixel, 1..64 (default 4)")
-    r.add_argument("--max-fragments-per-pixel", type=_non_negative_int, metavar="K",
-                   help="with the A-buffer: keep only the K nearest transparent fragments of a pixel "
-                        "(default 0: all of them)")
-    r.add_argument("--refraction", action="store_true", default=None,
-                   help="distort what lies behind transparent surfaces by their materials' refraction "
-                        "(default off)")
-    r.add_argument("--edge-aa", action="store_true", default=None,
-                   help="the report's edge-smoothing filter: blur along G-buffer edges (default off)")
-    r.add_argument("--edge-depth-threshold", type=float, metavar="T",
-                   help="with --edge-aa: relative view-depth jump that marks an edge (default 0.05)")
-    r.add_argument("--edge-normal-threshold", type=float, metavar="DEG",
-                   help="with --edge-aa: normal angle in degrees that marks an edge (default 30)")
-    r.add_argument("--fxaa", action="store_true", default=None,
-                   help="FXAA: luminance-edge anti-aliasing of the tone-mapped image (default off)")
-    r.add_argument("--supersample", type=_positive_int, metavar="K",
-                   help="render at K·W × K·H and filter down in linear HDR, K in 1..4 (default 1)")
-    r.add_argument("--supersample-filter", choices=("box", "lanczos2", "mitchell"),
-                   help="with --supersample: the resolve filter (default box)")
-    r.add_argument("--bloom", action="store_true", default=None,
-                   help="bloom: HDR colour above --bloom-threshold, blurred and added back (default off)")
-    r.add_argument("--bloom-threshold", type=float, metavar="T", help="with --bloom: linear HDR threshold (default 1)")
-    r.add_argument("--bloom-strength", type=float, metavar="S", help="with --bloom: strength (default 0.1)")
-    r.add_argument("--bloom-radius", type=float, metavar="PX", help="with --bloom: radius in pixels (default 16)")
-    r.add_argument("--motion-blur", action="store_true", default=None,
-                   help="motion blur along the per-pixel velocity; give motion with --previous-eye/"
-                        "--previous-target (default off)")
-    r.add_argument("--shutter", type=float, metavar="F", help="with --motion-blur: exposure in frames (default 0.5)")
-    r.add_argument("--motion-blur-samples", type=_positive_int, metavar="N",
-                   help="with --motion-blur: samples along the velocity, 2..64 (default 8)")
-    r.add_argument("--previous-eye", type=_vec3, metavar="X,Y,Z",
-                   help="the camera's position at the previous frame (velocity, motion blur)")
-    r.add_argument("--previous-target", type=_vec3, metavar="X,Y,Z",
-                   help="the point the camera looked at in the previous frame")
-    r.add_argument("--hatching", action="store_true", default=None,
-                   help="the report's non-photorealistic hatching of the image (default off)")
-    r.add_argument("--hatching-scale", type=float, metavar="S", help="with --hatching: stroke scale (default 1)")
-    r.add_argument("--hatching-saturation", type=float, metavar="S",
-                   help="with --hatching: colour kept, 0 (ink on white) .. 1 (default 0.3)")
-    r.add_argument("--time", type=float, default=0.0, metavar="SECONDS",
-                   help="animation time: places the scene's light particles (default 0)")
-    r.add_argument("--aov", type=_aov_list, default=[], metavar="LIST",
-                   help=f"comma-separated AOVs to write: {','.join(AOVS)}")
-    r.add_argument("--camera-eye", type=_vec3, metavar="X,Y,Z", help="camera position (overrides the scene's)")
-    r.add_argument("--camera-target", type=_vec3, metavar="X,Y,Z", help="point the camera looks at")
-    r.add_argument("--fov", type=_fov, metavar="DEG",
-                   help="vertical field of view in degrees (a perspective camera, also in place of an "
-                        "orthographic one)")
-    r.add_argument("--ortho", type=_half_height, metavar="HALF_HEIGHT",
-                   help="an orthographic camera whose view box is 2·HALF_HEIGHT world units tall (its width "
-                        "follows the image aspect)")
-    r.add_argument("--bit-depth", type=int, choices=(8, 16), default=8, metavar="{8,16}",
-                   help="bits per channel of the image (16: PNG only, from the tone-mapped float colour; default 8)")
-    r.add_argument("--exr", action="store_true",
-                   help="also write <out-stem>.exr: float32 layers color.RGB and every float --aov (needs OpenEXR)")
-    r.add_argument("--video", metavar="FILE.mp4|FILE.gif",
-                   help="also assemble the rendered images, in order, into a video (.mp4 H.264 via imageio-ffmpeg, or .gif)")
-    r.add_argument("--fps", type=float, default=24.0, metavar="N", help="with --video: frames per second (default 24)")
-    r.add_argument("-q", "--quiet", action="store_true", help="no progress or notes on stderr")
-    r.set_defaults(func=cmd_render)
-
-    d = sub.add_parser("devices", help="list OpenCL devices and whether clrender's kernels build on them",
-                       description="List every OpenCL device with the limits clrender relies on, mark the "
-                                   "default one, and try building clrender's kernels on each.")
-    d.add_argument("--json", action="store_true", help="print JSON instead of a table")
-    d.set_defaults(func=cmd_devices)
-
-    c = sub.add_parser("check", help="render fixed cases on several devices and compare every AOV")
-    c.add_argument("--device", default="all", metavar="NAME|all",
-                   help="devices to compare (default all, simulators such as Oclgrind included)")
-    c.add_argument("--scene", action="append", default=[], metavar="S", help="check this scene instead of the fixed cases")
-    c.add_argument("--width", type=_positive_int, default=96, metavar="W")
-    c.add_argument("--height", type=_positive_int, default=64, metavar="H")
-    c.add_argument("--json", metavar="REPORT", help="also write the report as JSON")
-    c.add_argument("-q", "--quiet", action="store_true", help="no progress on stderr")
-    c.set_defaults(func=cmd_check)
-
-    i = sub.add_parser("info", help="describe a scene file",
-                       description="Triangles, vertices, meshes, materials, textures, bounds and camera "
-                                   "of a scene file.")
-    i.add_argument("scene", metavar="SCENE")
-    i.add_argument("--json", action="store_true", help="print JSON instead of text")
-    i.set_defaults(func=cmd_info)
-    return parser
+# The grammar (re-exported: tests and scripts use clrender.cli.build_parser, CLIError, AOVS).
+from .cli_parser import AOVS  # noqa: F401
+from .cli_parser import ENV_DEBUG, IMAGE_SUFFIXES, PROG, CLIError, _join_vector_options, build_parser
 
 
 # ---------------------------------------------------------------------------------------------
@@ -295,34 +58,11 @@ def _load(path: str):
     return load_scene(path)
 
 
-def _scene_size(scene, args) -> tuple[int, int]:
-    """--width/--height, else the scene's [render] size, else 1280x720; one given keeps the aspect."""
-    settings = scene.settings.get("render", {}) if isinstance(scene.settings, dict) else {}
-    dw, dh = settings.get("width"), settings.get("height")
-    if not (isinstance(dw, int) and isinstance(dh, int) and dw > 0 and dh > 0):
-        dw = dw if isinstance(dw, int) and dw > 0 else DEFAULT_SIZE[0]
-        dh = dh if isinstance(dh, int) and dh > 0 else DEFAULT_SIZE[1]
-    w, h = args.width, args.height
-    if w is None and h is None:
-        return dw, dh
-    if w is None:
-        w = max(1, round(h * dw / dh))
-    if h is None:
-        h = max(1, round(w * dh / dw))
-    return w, h
-
-
-def _scene_config(scene, path, options):
-    """The scene's [render] options (TOML) with the command line's on top."""
-    import dataclasses
-
-    from .renderer import RenderConfig
-    settings = scene.settings.get("render", {}) if isinstance(scene.settings, dict) else {}
-    names = {f.name for f in dataclasses.fields(RenderConfig)}
+def _scene_config(scene, options):
     try:
-        return RenderConfig.from_options(**{**{k: v for k, v in settings.items() if k in names}, **options})
+        return scene_config(scene, options)
     except ValueError as exc:
-        raise CLIError(f"{path}: [render]: {exc}") from None
+        raise CLIError(str(exc)) from None
 
 
 def _previous_camera(camera, args):
@@ -342,36 +82,10 @@ def _previous_camera(camera, args):
 
 def _camera(scene, args):
     """The scene's camera (or the framing default) with the command-line overrides applied."""
-    from .camera import Camera
-
-    cam = scene.default_camera()
-    ortho = getattr(args, "ortho", None)
-    if args.fov is not None and ortho is not None:
-        raise CLIError("--fov (perspective) and --ortho (orthographic) exclude each other")
-    if args.camera_eye is None and args.camera_target is None and args.fov is None and ortho is None:
-        return cam
-    eye = args.camera_eye if args.camera_eye is not None else cam.eye
-    target = args.camera_target if args.camera_target is not None else cam.target
-    fov = args.fov if args.fov is not None else cam.fov_y_deg
-    if ortho is None and args.fov is None and cam.is_orthographic:
-        ortho = cam.ymag                          # the scene's orthographic camera, moved
-    far = cam.far
-    if args.camera_eye is not None or args.camera_target is not None:
-        # Keep the whole scene inside the far plane from the new viewpoint.
-        lo, hi = scene.bounds().astype(np.float64)
-        reach = float(np.linalg.norm(np.subtract((lo + hi) / 2, eye)) + np.linalg.norm(hi - lo) / 2)
-        far = max(far, reach * 1.5)
-    up = np.asarray(cam.up, np.float64)
-    forward = np.subtract(target, eye)
-    if np.linalg.norm(forward) == 0.0:
-        raise CLIError(f"camera eye and target are the same point {tuple(eye)}")
-    if np.linalg.norm(np.cross(forward, up)) < 1e-6 * np.linalg.norm(forward):
-        up = np.array([0.0, 0.0, -1.0])          # looking straight up or down
+    from .camera import with_overrides
     try:
-        if ortho is not None:
-            xmag = cam.xmag * ortho / cam.ymag if cam.is_orthographic else ortho
-            return Camera.orthographic(eye, target, tuple(up), xmag, ortho, near=min(cam.near, far * 0.5), far=far)
-        return Camera.look_at(eye, target, tuple(up), fov, near=min(cam.near, far * 0.5), far=far)
+        return with_overrides(scene.default_camera(), scene.bounds(), args.camera_eye, args.camera_target,
+                              args.fov, getattr(args, "ortho", None))
     except ValueError as exc:
         raise CLIError(str(exc)) from None
 
@@ -430,17 +144,24 @@ def _check_distinct(scenes: list[str], images: list[Path], aovs: Sequence[str], 
 
 # ---------------------------------------------------------------------------------------------
 # commands
-def cmd_render(args) -> int:
-    from .device import default_device_info
-    from .renderer import RenderConfig, Renderer
-
-    scenes = list(args.scenes)
+def check_scene_files(scenes) -> None:
     for s in scenes:
         p = Path(s)
         if not p.exists():
             raise CLIError(f"{s}: file not found")
         if not p.is_file():
             raise CLIError(f"{s}: not a file")
+
+
+def batch_requested(args) -> bool:
+    """Frames, resume or a cluster: the batch route (clrender.cli_batch)."""
+    return any(getattr(args, k, None) for k in ("frames", "time_range", "resume", "workers", "scheduler"))
+
+
+def render_options(args) -> dict:
+    """The RenderConfig options given on the command line, each checked (CLIError naming its flag)."""
+    from .renderer import RenderConfig
+    check_scene_files(args.scenes)
     options = {name: value for name, value in (
         ("tile_size", args.tile_size), ("light_tile_size", args.light_tile_size),
         ("light_culling", args.light_culling), ("pipeline", args.pipeline), ("msaa", args.msaa),
@@ -466,11 +187,23 @@ def cmd_render(args) -> int:
         except ValueError as exc:
             raise CLIError(f"{flags.get(name, '--' + name.replace('_', '-'))}: {exc}") from None
     RenderConfig.from_options(**options)
+    return options
+
+
+def cmd_render(args) -> int:
+    from .device import default_device_info
+    from .renderer import Renderer
+
+    options = render_options(args)
+    if batch_requested(args):
+        from .cli_batch import cmd_render_frames
+        return cmd_render_frames(args, options)
+    scenes = list(args.scenes)
     images = _plan_outputs(scenes, args.output)
     bit_depth = getattr(args, "bit_depth", 8)
     exr = bool(getattr(args, "exr", False))
     video = getattr(args, "video", None)
-    fps = getattr(args, "fps", 24.0)
+    fps = 24.0 if getattr(args, "fps", None) is None else args.fps
     if bit_depth == 16:
         for image in images:
             if image.suffix.lower() != ".png":
@@ -484,8 +217,8 @@ def cmd_render(args) -> int:
             check_video_path(video)
         except (ValueError, RuntimeError) as exc:
             raise CLIError(f"--video: {exc}") from None
-    elif getattr(args, "fps", 24.0) != 24.0:
-        _note(args, f"{PROG}: note: --fps has no effect without --video")
+    elif getattr(args, "fps", None) is not None:
+        _note(args, f"{PROG}: note: --fps has no effect on a still without --video")
     _check_distinct(scenes, images, args.aov, exr, video)
     written: list[Path] = []
     info = default_device_info(args.device)
@@ -496,9 +229,11 @@ def cmd_render(args) -> int:
     for index, (scene_path, image) in enumerate(zip(scenes, images), 1):
         try:
             scene = _load(scene_path)
-            width, height = _scene_size(scene, args)
+            if scene.animation is not None:       # a still of an animated scene: posed at --time
+                scene.pose(args.time)
+            width, height = scene_size(scene, args.width, args.height)
             camera = _camera(scene, args)
-            config = _scene_config(scene, scene_path, options)
+            config = _scene_config(scene, options)
             renderer = renderers.get((width, height, config))
             if renderer is None:
                 renderer = renderers[(width, height, config)] = Renderer(width, height, device=info, config=config)
@@ -677,7 +412,8 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     try:
         args = build_parser().parse_args(_join_vector_options(argv))
         _one_line_warnings(getattr(args, "quiet", False))
-        return int(args.func(args) or 0)
+        commands = {"render": cmd_render, "devices": cmd_devices, "check": cmd_check, "info": cmd_info}
+        return int(commands[args.command](args) or 0)
     except SystemExit as exc:                    # --help / --version
         return exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 1)
     except KeyboardInterrupt:
@@ -698,5 +434,10 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
         return 1
 
 
-if __name__ == "__main__":
+def run() -> None:
+    """The `clrender` program (console script and `python -m clrender`): main(), then exit."""
     sys.exit(main())
+
+
+if __name__ == "__main__":
+    run()

@@ -88,26 +88,33 @@ def select_devices(spec: Optional[str] = None, simulators: bool = False) -> list
     if not devices:
         raise DeviceError("no OpenCL device found: install one, e.g. `pip install pocl-binary-distribution`")
     if spec is None or spec.strip().lower() == "all":
+        wanted = devices if simulators else [d for d in devices if not d.is_simulator]
         usable = []
-        for d in devices:
-            error = capabilities.compiler_error(d.cl_device)
+        for d in wanted:
+            error = usable_error(d)
             if error is None:
                 usable.append(d)
             else:
                 _warn_unusable(d, error)
-        chosen = usable if simulators else [d for d in usable if not d.is_simulator]
-        return chosen or usable or devices
+        return usable or wanted or devices
     chosen = [d for d in devices if d.matches(spec)]
     if not chosen:
         names = "; ".join(d.label for d in devices)
         raise DeviceError(f"no OpenCL device matches {spec!r}; available: {names}")
     if len(chosen) > 1:          # a name several devices match: the ones that cannot build kernels drop out
-        usable = [d for d in chosen if capabilities.compiler_error(d.cl_device) is None]
+        usable = [d for d in chosen if usable_error(d) is None]
         for d in chosen:
             if d not in usable:
-                _warn_unusable(d, capabilities.compiler_error(d.cl_device))
+                _warn_unusable(d, usable_error(d))
         chosen = usable or chosen
     return chosen
+
+
+def usable_error(d: DeviceInfo) -> Optional[str]:
+    """None when device `d`, asked in a child process (clrender.device_probe), builds and runs
+    clrender's kernels; else why not."""
+    from .device_probe import probe_error
+    return probe_error(d)
 
 
 _warned: set = set()

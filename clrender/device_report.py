@@ -17,11 +17,9 @@ def device_record(d, default_id: Optional[str], describe_error: Callable[[BaseEx
     except Exception as exc:                     # a broken driver must not hide the others
         record["summary_error"] = describe_error(exc)
         record.update(capabilities.summary(d.cl_device, tolerant=True))
-    try:
-        build_every_kernel(d)
-        record["kernels"], record["kernels_error"] = "ok", None
-    except Exception as exc:
-        record["kernels"], record["kernels_error"] = "failed", describe_error(exc)
+    from .device import usable_error                 # built in a child process (clrender.device_probe)
+    error = usable_error(d)
+    record["kernels"], record["kernels_error"] = ("ok", None) if error is None else ("failed", error)
     return record
 
 

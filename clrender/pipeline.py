@@ -176,6 +176,8 @@ class Pipeline:
         res.buffers.update(self.matrices)
         res.buffers.update(self.constants)
         k = self.config.supersample
+        if prev_camera == camera and "prev_positions" not in res.buffers:
+            prev_camera = None        # nothing moved: velocity exactly 0, not reprojection round-off
         internal = self._set_camera(camera, k * width, k * height, prev_camera)
         res.values.update(internal, time=float(time), camera=camera)
         for p in self.passes:

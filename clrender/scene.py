@@ -381,7 +381,11 @@ class Scene:
 
     def bounds(self) -> np.ndarray:
         """(2, 3) min/max over finite vertices referenced by triangles."""
-        pts = self.positions[np.unique(self.triangles)] if self.triangle_count else self.positions
+        pts = self.positions
+        if self.triangle_count:      # a mask of the referenced vertices: np.unique's sort costs more
+            used = np.zeros(len(pts), bool)
+            used[self.triangles.reshape(-1)] = True
+            pts = pts[used]
         pts = pts[np.isfinite(pts).all(1)]
         if len(pts) == 0:
             return np.zeros((2, 3), np.float32)

@@ -2,7 +2,10 @@
 
 Uploads are cached per (scene, device) and rebuilt when the scene's arrays change identity
 or shape (an upload replaces its predecessor; both are dropped when the scene is collected).
-The scene and its lights are validated whenever they are (re)uploaded, so arrays edited after
+Between animation frames (Scene.set_transform replaces positions, normals, tangents, triangles
+and previous_positions) only the replaced arrays are written into the existing buffers; the
+texture pool, materials, uvs... stay as they are. The scene and its lights are validated whenever
+they are (re)uploaded (a pose-only update checks what changed), so arrays edited after
 construction cannot reach a kernel with an out-of-range index or a NaN light. Mip chains are
 built once per texture object (box filter in linear space, as GL's glGenerateMipmap does for
 sRGB textures).
@@ -171,11 +174,27 @@ def transparent_triangle_count(scene: Scene) -> int:
     return int(np.count_nonzero(blend[scene.triangle_material])) if scene.triangle_count else 0
 
 
+# The arrays an upload reads. An entry keeps them (strong references, so that an identity compared
+# later cannot be a new array's at a recycled address) with their shapes, materials and textures.
+_ARRAYS = ("positions", "normals", "uvs", "triangles", "triangle_material", "previous_positions", "colors",
+           "tangents", "extra_uvs")
+# Per-vertex / per-triangle geometry that posing replaces (Scene.set_transform): array -> buffer name.
+_POSED = {"positions": "positions", "normals": "normals", "tangents": "tangents", "triangles": "triangles",
+          "previous_positions": "prev_positions"}
+_DTYPES = {"positions": np.float32, "normals": np.float32, "tangents": np.float32, "triangles": np.int32,
+           "previous_positions": np.float32}
+
+
 def _fingerprint(scene: Scene) -> tuple:
-    arrays = (scene.positions, scene.normals, scene.uvs, scene.triangles, scene.triangle_material,
-              scene.previous_positions, scene.colors, scene.tangents, scene.extra_uvs)
-    return tuple((id(a), np.shape(a)) for a in arrays) + (tuple(map(id, scene.materials)),
-                                                          tuple(map(id, scene.textures)))
+    arrays = tuple(getattr(scene, name) for name in _ARRAYS)
+    return arrays, tuple(np.shape(a) for a in arrays), tuple(scene.materials), tuple(scene.textures)
+
+
+def _same(a: tuple, b: tuple) -> bool:
+    """Fingerprints of the same objects (compared by identity) and shapes."""
+    return (a[1] == b[1] and all(x is y for x, y in zip(a[0], b[0])) and len(a[2]) == len(b[2])
+            and all(x is y for x, y in zip(a[2], b[2])) and len(a[3]) == len(b[3])
+            and all(x is y for x, y in zip(a[3], b[3])))
 
 
 _UPLOADS: dict = {}
@@ -245,18 +264,24 @@ def upload_lights(scene: Scene, device) -> dict:
 
 
 def needs_upload(scene: Scene, device) -> bool:
-    """Whether `upload()` would (re)build the scene's device buffers."""
+    """Whether `upload()` would (re)build or update the scene's device buffers."""
     entry = _UPLOADS.get((id(scene), device.info.id))
-    return entry is None or entry[0]() is not scene or entry[1] != _fingerprint(scene)
+    return entry is None or entry[0]() is not scene or not _same(entry[1], _fingerprint(scene))
 
 
 def upload(scene: Scene, device) -> Resources:
-    """Device buffers for `scene` (cached while the scene object lives and is unchanged)."""
+    """Device buffers for `scene` (cached while the scene object lives and is unchanged). When only
+    posed geometry changed since the last upload (`_update`), the new data is written into the
+    existing buffers instead."""
     key = (id(scene), device.info.id)
     entry = _UPLOADS.get(key)
     fingerprint = _fingerprint(scene)
-    if entry is not None and entry[0]() is scene and entry[1] == fingerprint:
-        return entry[2]
+    if entry is not None and entry[0]() is scene:
+        if _same(entry[1], fingerprint):
+            return entry[2]
+        if _update(scene, device, entry[1], fingerprint, entry[2]):
+            _UPLOADS[key] = (entry[0], fingerprint, entry[2])
+            return entry[2]
     for name, cols in (("positions", 3), ("triangles", 3)):    # arrays may have been replaced since construction
         shape = np.shape(getattr(scene, name))
         if len(shape) != 2 or shape[1] != cols:
@@ -294,3 +319,59 @@ def upload(scene: Scene, device) -> Resources:
     _UPLOADS[key] = (weakref.ref(scene), fingerprint, res)
     _watch(scene, key)
     return res
+
+
+def _update(scene: Scene, device, old: tuple, new: tuple, res: Resources) -> bool:
+    """Between animation frames: when only posed geometry (_POSED) was replaced, by arrays of the
+    same shapes (previous_positions may also appear or disappear), and uvs, colors, materials,
+    textures... are the same objects, write the replaced arrays into the existing device buffers and
+    update the values derived from them; False (nothing done) when a full upload is needed. Checks
+    what Scene.validate() checks of the replaced arrays. A rewritten buffer gets a new Array object
+    over the same device memory, so caches keyed by buffer identity (the shadow pass's kept maps)
+    see the change as they see a full upload's new buffers."""
+    changed = []
+    for k, name in enumerate(_ARRAYS):
+        a, b, shape = old[0][k], new[0][k], new[1][k]
+        if a is b and old[1][k] == shape:
+            continue
+        if name not in _POSED or (old[1][k] != shape and not (name == "previous_positions" and
+                                                                (a is None or b is None))):
+            return False
+        changed.append(name)
+    if not (len(old[2]) == len(new[2]) and all(x is y for x, y in zip(old[2], new[2]))
+            and len(old[3]) == len(new[3]) and all(x is y for x, y in zip(old[3], new[3]))):
+        return False
+    where, nv = scene.source, len(scene.positions)
+    if "triangles" in changed and scene.triangle_count and (scene.triangles.min() < 0
+                                                              or scene.triangles.max() >= nv):
+        raise SceneError(f"{where}: a triangle index is out of range (there are {nv} vertices)")
+    if "tangents" in changed and scene.tangents is not None and not np.isfinite(scene.tangents).all():
+        raise SceneError(f"{where}: tangents must be finite with shape {(nv, 4)}, got {np.shape(scene.tangents)}")
+    if scene.previous_positions is not None and np.shape(scene.previous_positions) != (nv, 3):
+        raise SceneError(f"{where}: previous_positions must have shape ({nv}, 3) like positions, "
+                         f"got {np.shape(scene.previous_positions)}")
+    if scene.tangents is None and "tangents" not in changed and {"positions", "normals", "triangles"} & set(changed):
+        changed.append("tangents")          # generated from positions, normals, uvs, triangles (if at all)
+    q = device.queue
+    for name in changed:
+        buffer = _POSED[name]
+        if name == "tangents":
+            data = vertex_tangents(scene)
+            if data is None:
+                continue                    # nothing needs tangents: the buffer stays a placeholder
+        else:
+            data = getattr(scene, name)
+        if data is None:                    # previous_positions gone: no motion
+            res.buffers.pop(buffer, None)
+            continue
+        data = np.ascontiguousarray(data, dtype=_DTYPES[name]).reshape(-1)
+        current = res.buffers.get(buffer)
+        if current is None:                 # previous_positions appeared
+            res.buffers[buffer] = cla.to_device(q, data if data.size else np.zeros(1, data.dtype))
+        elif data.size:
+            current.set(data, queue=q)
+            res.buffers[buffer] = current.view()
+    if {"positions", "triangles"} & set(changed):
+        res.values["scene_bounds"] = scene.bounds()
+    return True
+

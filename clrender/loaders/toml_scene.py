@@ -29,6 +29,19 @@ projection = "perspective"    # optional: "perspective" (default) or "orthograph
                               #   (world units; the image aspect decides the width: ymag·W/H, as glTF
                               #   viewers do) and allows near = 0
 
+[[camera.keys]]               # optional, instead of eye/target: keyframes (any number >= 1)
+time = 0.0                    # seconds, strictly increasing from key to key
+eye = [0, 2, 8]
+target = [0, 0, 0]
+fov_y_deg = 50                # optional, perspective only; default: [camera]'s fov_y_deg
+
+[camera.orbit]                # optional, instead of eye/target and keys: eye circling center about +Y
+center = [0, 1, 0]
+radius = 8.0                  # > 0
+height = 3.0                  # optional, default 0: the eye's y relative to center
+period = 10.0                 # > 0: seconds per revolution
+start_deg = 0.0               # optional, default 0: the angle at t = 0 (0: eye on center's +Z side)
+
 [render]                      # -> Scene.settings["render"]
 width = 960
 height = 540
@@ -50,6 +63,10 @@ inner_cone_deg = 15           # spot: optional, default 0
 outer_cone_deg = 25           # spot: optional, default 45; 0 <= inner <= outer < 90
 shadow = true                 # spot: optional, default false: a shadow map over the cone
 shadow_map_size = 1024        # spot: optional, default 1024 (texels per side, 16..8192)
+keys = [{ time = 0, position = [0, 6, 3] }, { time = 2, position = [2, 6, 3], intensity = 8 }]
+                              # point, spot: optional keyframes of position, color, intensity (each
+                              #   optional; default the table's); `position` may then be left out
+                              #   of the table when every key gives it. Also as [[light.keys]] tables
 
 [sun]                         # optional: the directional light (Scene.sun), lights every pixel
 direction = [-0.4, -1, -0.3]  # required: the way the light travels
@@ -73,6 +90,16 @@ changed by mesh transforms. `type = "directional"` (direction, color, intensity)
 `Scene.settings["directional_lights"]` as {direction (unit), color x intensity} with a warning;
 without a `[sun]` table the first directional light (mesh files' first) becomes the sun.
 `Scene.settings["lights"]` keeps the validated `[[light]]` tables as written.
+
+Animation (clrender/keyframes.py): camera keys, an orbit or light keys put a
+`keyframes.KeyframeAnimation` on `Scene.animation`; `scene.pose(t, dt)` then sets the camera and
+the keyed lights at time t and returns the camera at t - dt (as for glTF animations), and the
+loaded scene is posed at t = 0. Keys interpolate linearly (eye, target, fov_y_deg; light position
+and color x intensity), clamped to the first / last key outside their times; one key is a fixed
+camera or light. The orbit's eye is center + (radius sin a, height, radius cos a), a = start_deg +
+360° t / period, looking at center (up, near, far, fov_y_deg and projection from [camera]).
+`Scene.animation.duration`: the last key time of all tracks, one period for an orbit. A light
+without radius/range whose color is keyed gets the automatic radius of its color at each time.
 
 Transparency (docs/transparency.md): a material is transparent when its `alpha_mode` is "BLEND";
 its alpha is base_color.a x opacity x texture.a, and an opacity below 1 makes an "OPAQUE" material
@@ -102,7 +129,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .. import structs
+from .. import keyframes, structs
 from ..camera import Camera
 from ..scene import ALPHA_MODES, Material, Scene, SceneError, Sun
 from .common import (concat_vertex_attributes, fail, shift_textures, transform_normals, transform_points,
@@ -115,17 +142,17 @@ SUN_KEYS = {"direction", "color", "intensity", "shadow", "shadow_map_size"}
 MESH_KEYS = {"path", "name", "transform", "opacity", "refraction"}
 MATERIAL_KEYS = {"name", "opacity", "refraction", "alpha_mode", "alpha_cutoff"}
 TRANSFORM_KEYS = {"translate", "rotate_deg", "scale"}
-CAMERA_KEYS = {"eye", "target", "up", "fov_y_deg", "near", "far", "projection", "xmag", "ymag"}
+CAMERA_KEYS = {"eye", "target", "up", "fov_y_deg", "near", "far", "projection", "xmag", "ymag", "keys", "orbit"}
 # [render]: the image size, a background colour, and any RenderConfig option (validated by it)
 RENDER_KEYS = {"width", "height", "background"}
 LIGHT_KEYS = {"type", "name", "position", "direction", "color", "intensity", "radius", "range",
-              "inner_cone_deg", "outer_cone_deg", "shadow", "shadow_map_size"}
+              "inner_cone_deg", "outer_cone_deg", "shadow", "shadow_map_size", "keys"}
 LIGHT_TYPES = ("directional", "point", "spot")
 # keys each light type accepts (the union is LIGHT_KEYS)
 LIGHT_TYPE_KEYS = {
-    "point": {"type", "name", "position", "color", "intensity", "radius", "range"},
+    "point": {"type", "name", "position", "color", "intensity", "radius", "range", "keys"},
     "spot": {"type", "name", "position", "direction", "color", "intensity", "radius", "range",
-             "inner_cone_deg", "outer_cone_deg", "shadow", "shadow_map_size"},
+             "inner_cone_deg", "outer_cone_deg", "shadow", "shadow_map_size", "keys"},
     "directional": {"type", "name", "direction", "color", "intensity"},
 }
 LIGHT_REQUIRED = {"point": ("position",), "spot": ("position", "direction"), "directional": ("direction",)}
@@ -209,14 +236,15 @@ def _transform_scene(scene: Scene, matrix: np.ndarray) -> Scene:
     return scene
 
 
-def _camera(path, data) -> Camera:
+def _camera(path, data):
+    """[camera] -> a Camera, or with keys / orbit a keyframes.CameraKeys / Orbit."""
     data = _table(path, "[camera]", data)
     _unknown(path, "[camera]", data, CAMERA_KEYS)
-    for key in ("eye", "target"):
+    moving = "keys" in data or "orbit" in data
+    for key in () if moving else ("eye", "target"):
         if key not in data:
-            raise fail(path, f"[camera] needs {key!r}")
-    kw = {"eye": _vector(path, "camera.eye", data["eye"]), "target": _vector(path, "camera.target", data["target"]),
-          "up": _vector(path, "camera.up", data.get("up", [0, 1, 0]))}
+            raise fail(path, f"[camera] needs {key!r} (or camera.keys / camera.orbit)")
+    kw = {"up": _vector(path, "camera.up", data.get("up", [0, 1, 0]))}
     projection = data.get("projection", "perspective")
     if projection not in ("perspective", "orthographic"):
         raise fail(path, f"camera.projection must be \"perspective\" or \"orthographic\", got {projection!r}")
@@ -232,10 +260,21 @@ def _camera(path, data) -> Camera:
         kw[key] = _number(path, f"camera.{key}", data[key], positive=True)
     for key, default in ((() if ortho else (("fov_y_deg", 60.0),)) + (("near", 0.1), ("far", 100.0))):
         kw[key] = _number(path, f"camera.{key}", data.get(key, default), positive=not (ortho and key == "near"))
-    try:
-        return Camera.orthographic(**kw) if ortho else Camera.look_at(**kw)
-    except ValueError as exc:
-        raise fail(path, f"[camera]: {exc}") from None
+
+    def make(where, eye, target, fov_y_deg=None):
+        if fov_y_deg is not None and ortho:
+            raise fail(path, f"{where}: fov_y_deg applies to perspective cameras, not orthographic ones")
+        try:
+            if ortho:
+                return Camera.orthographic(eye=eye, target=target, **kw)
+            return Camera.look_at(eye=eye, target=target, **{**kw, **({} if fov_y_deg is None else
+                                                                     {"fov_y_deg": fov_y_deg})})
+        except ValueError as exc:
+            raise fail(path, f"{where}: {exc}") from None
+
+    if moving:
+        return keyframes.camera_motion(path, data, make)
+    return make("[camera]", _vector(path, "camera.eye", data["eye"]), _vector(path, "camera.target", data["target"]))
 
 
 def _render(path, data) -> dict:
@@ -277,7 +316,7 @@ def _lights(path, data) -> list[dict]:
             raise fail(path, f"{where}.type must be one of {LIGHT_TYPES}, got {kind!r}")
         _unknown(path, f"{where} (type {kind!r})", light, LIGHT_TYPE_KEYS[kind])
         for key in LIGHT_REQUIRED[kind]:
-            if key not in light:
+            if key not in light and not (key == "position" and "keys" in light):
                 raise fail(path, f"{where} (type {kind!r}) needs {key!r}")
         if "name" in light and not isinstance(light["name"], str):
             raise fail(path, f"{where}.name must be a string")
@@ -289,6 +328,8 @@ def _lights(path, data) -> list[dict]:
             if key in out:
                 out[key] = _number(path, f"{where}.{key}", out[key])
         _shadow_keys(path, where, out)
+        if "keys" in out:    # without a table position, every key gives one
+            out["keys"] = keyframes.light_keys(path, where, out["keys"], "position" in out)
         if "radius" in out and "range" in out:
             raise fail(path, f"{where}: give 'radius' or 'range' (a synonym), not both")
         for key in ("radius", "range"):
@@ -349,14 +390,15 @@ def _add_lights(path, scene: Scene, lights: list[dict]) -> None:
             directional.append({"direction": (d / np.linalg.norm(d)).tolist(), "color": color.tolist()})
             continue
         radius = light.get("radius", light.get("range"))
+        position = light["position"] if "position" in light else light["keys"][0]["position"]
         if radius is None:
             radius = auto_radius(color, diagonal)
             auto.append(len(scene.lights))
         try:
             if kind == "point":
-                scene.add_point_light(light["position"], color, radius)
+                scene.add_point_light(position, color, radius)
             else:
-                scene.add_spot_light(light["position"], light["direction"], color, radius,
+                scene.add_spot_light(position, light["direction"], color, radius,
                                      light.get("inner_cone_deg", 0.0), light.get("outer_cone_deg", 45.0),
                                      shadow=light.get("shadow", False),
                                      shadow_map_size=light.get("shadow_map_size", 1024))
@@ -583,11 +625,15 @@ def load_toml(path) -> Scene:
             raise fail(path, f"{where}: name {pattern!r} matches no material of the mesh files "
                              f"(loaded: {shown or 'none'})")
     scene = _concatenate(parts, str(path))
+    camera_track = None if camera is None or isinstance(camera, Camera) else camera
+    if camera_track is not None:
+        camera = camera_track.base       # a valid camera; posed at t = 0 below
     scene.camera = camera if camera is not None else next((s.camera for _, s in parts if s.camera is not None), None)
     if ambient is not None:
         scene.ambient = ambient
     if render is not None:
         scene.settings["render"] = render
+    first_light = len(scene.lights)
     if tables is not None:
         scene.settings["lights"] = tables
         _add_lights(path, scene, tables)
@@ -603,4 +649,9 @@ def load_toml(path) -> Scene:
         sun_from_directional(scene)
     # the mesh files' directional lights and the [[light]] tables' (merged into settings)
     warn_directional(path, len(scene.settings.get(DIRECTIONAL_KEY, ())), sun_given=sun is not None, stacklevel=4)
+    light_tracks = keyframes.light_tracks(tables or [], first_light, set(scene.settings.get(AUTO_RADIUS_KEY, [])),
+                                          scene_diagonal(scene))
+    if camera_track is not None or light_tracks:      # keyframes: posed at t = 0 once loaded
+        scene.animation = keyframes.KeyframeAnimation(camera_track, light_tracks, str(path), base=scene.animation)
+        scene.pose(0.0)
     return scene

@@ -1,0 +1,261 @@
+"""The command line's grammar: `clrender render | devices | check | info` and their options'
+types. `clrender.cli` runs the commands; this module only describes and checks the arguments."""
+from __future__ import annotations
+
+import argparse
+import math
+
+import numpy as np
+
+PROG = "clrender"
+ENV_DEBUG = "CLRENDER_DEBUG"
+IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg")
+# AOVs the CLI writes: every Frame AOV but `image`, which is the main output.
+def _aov_names():
+    from .renderer import Frame
+    return tuple(n for n in Frame.AOV_NAMES if n != "image")
+
+
+AOVS = _aov_names()
+
+
+class CLIError(Exception):
+    """A user-facing error: printed as one line, exit status `code`."""
+
+    def __init__(self, message: str, code: int = 1):
+        super().__init__(message)
+        self.code = code
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse that reports bad usage as a CLIError (one line) instead of usage + exit."""
+
+    def error(self, message):
+        raise CLIError(f"{message} (see `{self.prog} --help`)", code=2)
+
+
+# ---------------------------------------------------------------------------------------------
+# argument types
+def _vec3(text: str) -> tuple[float, float, float]:
+    parts = [p.strip() for p in text.replace(";", ",").split(",")]
+    try:
+        values = tuple(float(p) for p in parts)
+    except ValueError:
+        values = ()
+    if len(values) != 3 or not all(math.isfinite(v) for v in values):
+        raise argparse.ArgumentTypeError(f"expected three finite numbers x,y,z, got {text!r}")
+    return values
+
+
+def _positive_int(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}")
+    return value
+
+
+def _non_negative_int(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected an integer >= 0, got {text!r}") from None
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"expected an integer >= 0, got {text!r}")
+    return value
+
+
+def _fov(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        value = float("nan")
+    if not 0.0 < value < 180.0:
+        raise argparse.ArgumentTypeError(f"expected degrees in (0, 180), got {text!r}")
+    return value
+
+
+def _half_height(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        value = float("nan")
+    if not (value > 0.0 and np.isfinite(value)):
+        raise argparse.ArgumentTypeError(f"expected a positive half-height in world units, got {text!r}")
+    return value
+
+
+def _aov_list(text: str) -> list[str]:
+    names = [n.strip().lower() for n in text.split(",") if n.strip()]
+    if not names:
+        raise argparse.ArgumentTypeError("expected a comma-separated list of AOV names")
+    unknown = [n for n in names if n not in AOVS]
+    if unknown:
+        raise argparse.ArgumentTypeError(f"unknown AOV {unknown[0]!r} (available: {', '.join(AOVS)})")
+    return list(dict.fromkeys(names))
+
+
+def _join_vector_options(argv: list[str]) -> list[str]:
+    """`--camera-eye -1,2,3` -> `--camera-eye=-1,2,3`: argparse would read `-1,2,3` as an option."""
+    out, i = [], 0
+    while i < len(argv):
+        arg = argv[i]
+        if arg in ("--camera-eye", "--camera-target") and i + 1 < len(argv) and argv[i + 1].startswith("-") \
+                and argv[i + 1][1:2] in "0123456789.":
+            out.append(f"{arg}={argv[i + 1]}")
+            i += 2
+            continue
+        out.append(arg)
+        i += 1
+    return out
+
+
+def build_parser() -> argparse.ArgumentParser:
+    from .renderer import (LIGHT_BUFFER_PRECISION, LIGHT_BUFFER_SPECULAR, LIGHT_CULLING, PIPELINES,
+                           TRANSPARENCY)
+
+    parser = _Parser(prog=PROG, description="clrender: a tiled deferred renderer whose pixels are "
+                                            "computed by OpenCL kernels.")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
+    sub.required = True
+
+    r = sub.add_parser("render", help="render scene files to images (and AOVs)",
+                       description="Render each SCENE with one renderer. OUT is an image file (.png/.jpg) "
+                                   "for one scene, or a directory (OUT/<scene-name>.png) or a pattern "
+                                   "containing {name} (and optionally {index}) for several. AOVs are "
+                                   "written next to each image as <out-stem>.<aov>.npy (exact) and "
+                                   "<out-stem>.<aov>.png (preview); --exr adds one multi-layer <out-stem>.exr "
+                                   "(colour and every float AOV requested). Files are written to a temporary "
+                                   "name and renamed into place when complete.")
+    r.add_argument("scenes", nargs="+", metavar="SCENE", help="scene file (.toml .gltf .glb .obj .ply .stl)")
+    r.add_argument("-o", "--output", required=True, metavar="OUT",
+                   help="image file, directory, or pattern containing {name}")
+    r.add_argument("--width", type=_positive_int, metavar="W",
+                   help="image width (default: the scene's [render] width, else 1280)")
+    r.add_argument("--height", type=_positive_int, metavar="H",
+                   help="image height (default: the scene's [render] height, else 720)")
+    r.add_argument("--device", metavar="NAME",
+                   help="OpenCL device: a name substring or P:D (default: $CLRENDER_DEVICE, else a GPU, "
+                        "else PoCL); see `clrender devices`")
+    r.add_argument("--tile-size", type=int, metavar="N", help="raster tile size in pixels: 8, 16 or 32 (default 8)")
+    r.add_argument("--light-tile-size", type=int, metavar="N", help="light-culling tile size: 8, 16 or 32 (default 32)")
+    r.add_argument("--light-culling", choices=LIGHT_CULLING,
+                   help="light lists per tile: culled against tile frusta, every light, each light's screen "
+                        "quad, or tiled lists with per-pixel stencil bits (default tiled; "
+                        "docs/light_accumulation.md)")
+    r.add_argument("--pipeline", choices=PIPELINES,
+                   help="renderer variant: deferred shading, Engel's light pre-pass, or Trebilco's light-indexed "
+                        "deferred (default deferred; docs/variants.md)")
+    r.add_argument("--msaa", type=int, metavar="N",
+                   help="with --pipeline light_prepass: colour sub-samples per pixel, 1, 2, 4 or 8 (default 1)")
+    r.add_argument("--light-buffer-specular", choices=LIGHT_BUFFER_SPECULAR,
+                   help="with --pipeline light_prepass: specular RGB, or its luminance coloured by the diffuse "
+                        "light (default rgb)")
+    r.add_argument("--light-buffer-precision", choices=LIGHT_BUFFER_PRECISION,
+                   help="with --pipeline light_prepass: light buffer of floats or halves (default float32)")
+    r.add_argument("--tonemap", choices=("reinhard", "aces", "clamp"), help="tone-mapping operator (default reinhard)")
+    r.add_argument("--exposure", type=float, metavar="X", help="exposure multiplier before tone mapping (default 1)")
+    r.add_argument("--ssao", action="store_true", default=None, help="screen-space ambient occlusion (default off)")
+    r.add_argument("--ssao-radius", type=float, metavar="R", help="with --ssao: its radius in world units (default 1)")
+    r.add_argument("--ssao-strength", type=float, metavar="S", help="with --ssao: ao = 1 - S·occlusion (default 1)")
+    r.add_argument("--transparency", choices=TRANSPARENCY,
+                   help="how BLEND materials are drawn: per-pixel sorted fragment lists, depth peeling, or "
+                        "a stipple pattern in the G-buffer (default abuffer)")
+    r.add_argument("--peel-layers", type=_positive_int, metavar="N",
+                   help="with --transparency depth_peeling: layers peeled per pixel, 1..64 (default 4)")
+    r.add_argument("--max-fragments-per-pixel", type=_non_negative_int, metavar="K",
+                   help="with the A-buffer: keep only the K nearest transparent fragments of a pixel "
+                        "(default 0: all of them)")
+    r.add_argument("--refraction", action="store_true", default=None,
+                   help="distort what lies behind transparent surfaces by their materials' refraction "
+                        "(default off)")
+    r.add_argument("--edge-aa", action="store_true", default=None,
+                   help="the report's edge-smoothing filter: blur along G-buffer edges (default off)")
+    r.add_argument("--edge-depth-threshold", type=float, metavar="T",
+                   help="with --edge-aa: relative view-depth jump that marks an edge (default 0.05)")
+    r.add_argument("--edge-normal-threshold", type=float, metavar="DEG",
+                   help="with --edge-aa: normal angle in degrees that marks an edge (default 30)")
+    r.add_argument("--fxaa", action="store_true", default=None,
+                   help="FXAA: luminance-edge anti-aliasing of the tone-mapped image (default off)")
+    r.add_argument("--supersample", type=_positive_int, metavar="K",
+                   help="render at K·W × K·H and filter down in linear HDR, K in 1..4 (default 1)")
+    r.add_argument("--supersample-filter", choices=("box", "lanczos2", "mitchell"),
+                   help="with --supersample: the resolve filter (default box)")
+    r.add_argument("--bloom", action="store_true", default=None,
+                   help="bloom: HDR colour above --bloom-threshold, blurred and added back (default off)")
+    r.add_argument("--bloom-threshold", type=float, metavar="T", help="with --bloom: linear HDR threshold (default 1)")
+    r.add_argument("--bloom-strength", type=float, metavar="S", help="with --bloom: strength (default 0.1)")
+    r.add_argument("--bloom-radius", type=float, metavar="PX", help="with --bloom: radius in pixels (default 16)")
+    r.add_argument("--motion-blur", action="store_true", default=None,
+                   help="motion blur along the per-pixel velocity; give motion with --previous-eye/"
+                        "--previous-target (default off)")
+    r.add_argument("--shutter", type=float, metavar="F", help="with --motion-blur: exposure in frames (default 0.5)")
+    r.add_argument("--motion-blur-samples", type=_positive_int, metavar="N",
+                   help="with --motion-blur: samples along the velocity, 2..64 (default 8)")
+    r.add_argument("--previous-eye", type=_vec3, metavar="X,Y,Z",
+                   help="the camera's position at the previous frame (velocity, motion blur)")
+    r.add_argument("--previous-target", type=_vec3, metavar="X,Y,Z",
+                   help="the point the camera looked at in the previous frame")
+    r.add_argument("--hatching", action="store_true", default=None,
+                   help="the report's non-photorealistic hatching of the image (default off)")
+    r.add_argument("--hatching-scale", type=float, metavar="S", help="with --hatching: stroke scale (default 1)")
+    r.add_argument("--hatching-saturation", type=float, metavar="S",
+                   help="with --hatching: colour kept, 0 (ink on white) .. 1 (default 0.3)")
+    r.add_argument("--time", type=float, default=0.0, metavar="SECONDS",
+                   help="time of a single frame: poses the scene's animation and places its light particles (default 0)")
+    r.add_argument("--aov", type=_aov_list, default=[], metavar="LIST",
+                   help=f"comma-separated AOVs to write: {','.join(AOVS)}")
+    r.add_argument("--camera-eye", type=_vec3, metavar="X,Y,Z", help="camera position (overrides the scene's)")
+    r.add_argument("--camera-target", type=_vec3, metavar="X,Y,Z", help="point the camera looks at")
+    r.add_argument("--fov", type=_fov, metavar="DEG",
+                   help="vertical field of view in degrees (a perspective camera, also in place of an "
+                        "orthographic one)")
+    r.add_argument("--ortho", type=_half_height, metavar="HALF_HEIGHT",
+                   help="an orthographic camera whose view box is 2·HALF_HEIGHT world units tall (its width "
+                        "follows the image aspect)")
+    r.add_argument("--bit-depth", type=int, choices=(8, 16), default=8, metavar="{8,16}",
+                   help="bits per channel of the image (16: PNG only, from the tone-mapped float colour; default 8)")
+    r.add_argument("--exr", action="store_true",
+                   help="also write <out-stem>.exr: float32 layers color.RGB and every float --aov (needs OpenEXR)")
+    r.add_argument("--video", metavar="FILE.mp4|FILE.gif",
+                   help="also assemble the rendered images, in order, into a video (.mp4 H.264 via imageio-ffmpeg, or .gif)")
+    r.add_argument("--fps", type=float, default=None, metavar="N",
+                   help="frames per second: frame f shows time f/fps, and the video's rate (default 24)")
+    b = r.add_argument_group("frames and batches", "Render an animation or a range of frames (frame f at time "
+                             "f/fps; glTF animations and TOML keyframes), with a progress bar, a manifest.json "
+                             "in the output folder, and optionally on a Dask cluster (README: Batch and cluster "
+                             "rendering).")
+    b.add_argument("--frames", metavar="A:B[:STEP]|N|all",
+                   help="frames A..B-1 (every STEP-th), frame N, or all of the scene's animation")
+    b.add_argument("--time-range", metavar="T0:T1", help="the frames whose times lie in [T0, T1) seconds")
+    b.add_argument("--resume", action="store_true",
+                   help="skip frames the output folder's manifest.json shows complete")
+    b.add_argument("--workers", type=_positive_int, metavar="N",
+                   help="render on a local Dask cluster of N worker processes")
+    b.add_argument("--scheduler", metavar="ADDRESS", help="render on the Dask cluster at ADDRESS (tcp://host:8786)")
+    b.add_argument("--resources", metavar="NAME=N[,...]",
+                   help="with --scheduler: run only on workers with these Dask resources (e.g. GPU=1)")
+    r.add_argument("-q", "--quiet", action="store_true", help="no progress or notes on stderr")
+
+    d = sub.add_parser("devices", help="list OpenCL devices and whether clrender's kernels build on them",
+                       description="List every OpenCL device with the limits clrender relies on, mark the "
+                                   "default one, and try building clrender's kernels on each.")
+    d.add_argument("--json", action="store_true", help="print JSON instead of a table")
+
+    c = sub.add_parser("check", help="render fixed cases on several devices and compare every AOV")
+    c.add_argument("--device", default="all", metavar="NAME|all",
+                   help="devices to compare (default all, simulators such as Oclgrind included)")
+    c.add_argument("--scene", action="append", default=[], metavar="S", help="check this scene instead of the fixed cases")
+    c.add_argument("--width", type=_positive_int, default=96, metavar="W")
+    c.add_argument("--height", type=_positive_int, default=64, metavar="H")
+    c.add_argument("--json", metavar="REPORT", help="also write the report as JSON")
+    c.add_argument("-q", "--quiet", action="store_true", help="no progress on stderr")
+
+    i = sub.add_parser("info", help="describe a scene file",
+                       description="Triangles, vertices, meshes, materials, textures, bounds and camera "
+                                   "of a scene file.")
+    i.add_argument("scene", metavar="SCENE")
+    i.add_argument("--json", action="store_true", help="print JSON instead of text")
+    return parser
