@@ -34,6 +34,8 @@ import time
 
 import numpy as np
 
+from clrender.pipeline import pass_ms
+
 from bench.common import SPONZA, SPONZA_CAMERA, RESULTS, medians, require_scene, time_renders, write_record
 
 PASS_ORDER = ("setup", "binning", "raster", "gbuffer", "particles", "light_cull", "shade", "tonemap")
@@ -42,7 +44,7 @@ SIDE_BY_SIDE_COUNT = 1024
 
 def pass_keys(stats: dict) -> list[str]:
     """The ``*_ms`` keys of a stats dict (total last), known passes in pipeline order first."""
-    keys = [k for k in stats if k.endswith("_ms") and k != "total_ms"]
+    keys = list(pass_ms(stats))
     order = {f"{p}_ms": i for i, p in enumerate(PASS_ORDER)}
     return sorted(keys, key=lambda k: (order.get(k, len(order)), k))
 

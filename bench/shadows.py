@@ -22,6 +22,8 @@ from pathlib import Path
 
 import numpy as np
 
+from clrender.pipeline import pass_ms
+
 from bench.common import REPO, SPONZA, SPONZA_CAMERA, medians, require_scene, time_renders, write_record
 
 PASS_ORDER = ("setup", "binning", "raster", "gbuffer", "particles", "light_cull", "shadow", "shadow_setup",
@@ -31,7 +33,7 @@ FLOOR_Y = 3.98                      # Sponza's ground floor (world units)
 
 
 def pass_keys(stats: dict) -> list[str]:
-    keys = [k for k in stats if k.endswith("_ms") and k != "total_ms"]
+    keys = list(pass_ms(stats))
     order = {f"{p}_ms": i for i, p in enumerate(PASS_ORDER)}
     return sorted(keys, key=lambda k: (order.get(k, len(order)), k))
 

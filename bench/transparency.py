@@ -46,6 +46,8 @@ from pathlib import Path
 
 import numpy as np
 
+from clrender.pipeline import pass_ms
+
 from bench.common import REPO, SPONZA, SPONZA_CAMERA, medians, require_scene, time_renders, write_record
 
 PASS_ORDER = ("setup", "binning", "raster", "gbuffer", "particles", "fragments", "light_cull", "ssao", "ssao_blur",
@@ -75,7 +77,7 @@ CONFIGS = (            # name, Renderer options, scene variant
 
 def pass_keys(stats: dict) -> list[str]:
     """The ``*_ms`` keys of a stats dict (total left out), known passes in pipeline order first."""
-    keys = [k for k in stats if k.endswith("_ms") and k != "total_ms"]
+    keys = list(pass_ms(stats))
     order = {f"{p}_ms": i for i, p in enumerate(PASS_ORDER)}
     return sorted(keys, key=lambda k: (order.get(k, len(order)), k))
 

@@ -16,6 +16,8 @@ import statistics
 
 import numpy as np
 
+from clrender.pipeline import pass_ms
+
 from .common import SPONZA, SPONZA_CAMERA, medians, require_scene, time_renders, write_record
 
 VARIANTS = (
@@ -93,8 +95,8 @@ def print_table(count: int, entry: dict) -> None:
             continue
         m = e["median"]
         ratio = m["total_ms"] / ref["median"]["total_ms"] if ref else float("nan")
-        passes = " ".join(f"{k[:-3]} {v:.1f}" for k, v in m.items() if k.endswith("_ms") and k != "total_ms"
-                          and v >= 0.05 and k.count("_") <= 2)
+        passes = " ".join(f"{k[:-3]} {v:.1f}" for k, v in pass_ms(m).items()
+                          if v >= 0.05 and k.count("_") <= 2)
         print(f"{name:<22} {e['wall_ms_median']:7.1f} {m['total_ms']:7.1f} {ratio:6.2f} "
               f"{e['bytes_per_pixel']['total']:5d} {int(m.get('light_pairs_evaluated', 0)):11,d} "
               f"{int(m.get('light_pairs_useful', 0)):11,d}  {passes}")

@@ -151,8 +151,9 @@ def default_cases(width: int, height: int) -> list[tuple[str, Scene, Camera]]:
     soup = Scene.from_arrays((centers + rng.normal(scale=0.6, size=(n, 3, 3))).reshape(-1, 3).astype(np.float32),
                              np.arange(3 * n).reshape(-1, 3))
     soup.add_random_lights(64, seed=5, radius=(0.5, 2.0))
-    soup.add_spot_light((0, 3, -2), (0, -1, -0.6), (4, 4, 4), 10, 20, 40, shadow=True, shadow_map_size=256)
-    soup.set_sun((0.3, -1, -0.4), (0.8, 0.8, 0.8), shadow_map_size=256)     # shadow maps: spot and sun
+    soup.add_spot_light((0, 3, -2), (0, -1, -0.6), (4, 4, 4), 10, 20, 40, shadow=True, shadow_map_size=128)
+    # shadow maps, spot and sun: 128² keeps the Oclgrind runs of the three soup cases short in CI
+    soup.set_sun((0.3, -1, -0.4), (0.8, 0.8, 0.8), shadow_map_size=128)
     cases.append(("soup", soup, Camera.look_at((0, 0, 0), (0, 0, -1), near=0.1, far=50)))
     m = 3000                                 # every triangle over the same few pixels: one hot tile
     tri = np.array([[-0.05, -0.05, 0], [0.05, -0.05, 0], [0, 0.05, 0]], np.float32)
@@ -227,9 +228,9 @@ AOVS = ("triangle_id", "depth", "normal", "albedo", "specular_intensity", "specu
 
 
 def run_check(devices="all", scenes: Sequence[str | Path] = (), width: int = 96,
-              height: int = 64, progress=None) -> CheckReport:
+              height: int = 64, progress=None, only: Sequence[str] = ()) -> CheckReport:
     """Render the cases (or `scenes`) on every selected device -- "all", a name (select_devices), or
-    a list of DeviceInfo -- and compare with the first device."""
+    a list of DeviceInfo -- and compare with the first device; `only`: just the cases so named."""
     from .device import DeviceError, select_devices
     from .loaders import load_scene
     from .renderer import Renderer
@@ -255,22 +256,28 @@ def run_check(devices="all", scenes: Sequence[str | Path] = (), width: int = 96,
     soup = next((c for c in cases if c[0] == "soup"), None) if not scenes else None
     if soup is not None:
         cases += [(mode, soup[1], soup[2]) for mode in LIGHT_VARIANTS]
+    if only:
+        unknown = set(only) - {c[0] for c in cases}
+        if unknown:
+            raise ValueError(f"no check case named {sorted(unknown)} (cases: {[c[0] for c in cases]})")
+        cases = [c for c in cases if c[0] in only]
     frames = {}
+    options = {"post": POST_OPTIONS, **VARIANT_OPTIONS, **{mode: dict(ssao=True, light_culling=mode)
+                                                          for mode in LIGHT_VARIANTS}}
     for info in infos:
-        renderer = Renderer(width, height, device=info, ssao=True)     # so that `ao` is computed
-        post = Renderer(width, height, device=info, **POST_OPTIONS)
-        variants = {name: Renderer(width, height, device=info, **opts) for name, opts in VARIANT_OPTIONS.items()}
-        variants.update({mode: Renderer(width, height, device=info, ssao=True, light_culling=mode)
-                         for mode in LIGHT_VARIANTS})
+        renderers: dict = {}           # built on first use (building compiles programs: slow on simulators)
         for name, scene, camera in cases:
             if progress:
                 progress(f"{info.label}: {name}")
+            key = name if name in options else None
+            if key not in renderers:     # the plain cases: SSAO on, so that `ao` is computed
+                renderers[key] = Renderer(width, height, device=info, **options.get(key, dict(ssao=True)))
             if name == "post":
                 prev = Camera.look_at(np.add(camera.eye, (0.3, 0.0, 0.0)), np.add(camera.target, (0.3, 0.0, 0.0)),
                                       camera.up, camera.fov_y_deg, camera.near, camera.far)
-                frames[info.label, name] = post.render(scene, camera, previous_camera=prev, time=0.5)
+                frames[info.label, name] = renderers[key].render(scene, camera, previous_camera=prev, time=0.5)
             else:
-                frames[info.label, name] = variants.get(name, renderer).render(scene, camera, time=0.5)
+                frames[info.label, name] = renderers[key].render(scene, camera, time=0.5)
     reference = infos[0].label
     rows = []
     for info in infos[1:]:

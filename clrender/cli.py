@@ -267,11 +267,14 @@ def cmd_render(args) -> int:
 
 
 def _format_stats(stats: dict) -> str:
-    passes = [(k[:-3], v) for k, v in stats.items() if k.endswith("_ms") and k != "total_ms"]
-    parts = [f"{name} {ms:.2f}" for name, ms in passes]
+    from .pipeline import pass_ms
+    parts = [f"{name[:-3]} {ms:.2f}" for name, ms in pass_ms(stats).items()]
     text = "passes (ms): " + ", ".join(parts)
     if "total_ms" in stats:
         text += f"; total {stats['total_ms']:.2f}"
+    if "wall_ms" in stats:
+        host = ", ".join(f"{k[:-3]} {v:.1f}" for k, v in stats.get("host", {}).items())
+        text += f"; render() {stats['wall_ms']:.1f} (host: {host})"
     extra = [f"{k} {stats[k]}" for k in ("prims", "tile_entries", "retries") if k in stats]
     if "device_bytes" in stats:
         extra.append(f"device {stats['device_bytes'] / 2**20:.1f} MiB")
@@ -294,10 +297,14 @@ def cmd_devices(args) -> int:
     records = [device_record(d, default_id, _one_line) for d in devices]
     if args.json:
         print(json.dumps(records, indent=2))
-        return 0
-    print(devices_table(records))
-    if default_id is not None:
-        print("* default device (override with --device NAME or $CLRENDER_DEVICE)")
+    else:
+        print(devices_table(records))
+        if default_id is not None:
+            print("* default device (override with --device NAME or $CLRENDER_DEVICE)")
+    for name in args.require:                   # CI: a missing implementation is a failure, not a skip
+        usable = [d.label for d, r in zip(devices, records) if d.matches(name) and r["kernels"] == "ok"]
+        if not usable:
+            raise CLIError(f"--require {name!r}: no OpenCL device matching it runs clrender's kernels")
     return 0
 
 
@@ -309,10 +316,13 @@ def cmd_check(args) -> int:
     report = run_check(args.device, args.scene, args.width, args.height,
                        progress=None if args.quiet else (lambda m: print(f"rendering {m}", file=sys.stderr)))
     print(report.table())
-    if len(report.devices) < 2:
-        _note(args, f"{PROG}: note: only one device ({report.devices[0]}): nothing to compare")
     if args.json:
         Path(args.json).write_text(json.dumps(report.to_dict(), indent=2))
+    if len(report.devices) < args.min_devices:
+        raise CLIError(f"{len(report.devices)} device(s) compared ({', '.join(report.devices)}), "
+                       f"--min-devices {args.min_devices} wanted")
+    if len(report.devices) < 2:
+        _note(args, f"{PROG}: note: only one device ({report.devices[0]}): nothing to compare")
     return 0 if report.ok else 1
 
 

@@ -243,6 +243,8 @@ def build_parser() -> argparse.ArgumentParser:
                        description="List every OpenCL device with the limits clrender relies on, mark the "
                                    "default one, and try building clrender's kernels on each.")
     d.add_argument("--json", action="store_true", help="print JSON instead of a table")
+    d.add_argument("--require", action="append", default=[], metavar="NAME",
+                   help="fail unless a device matching NAME runs clrender's kernels (repeatable; CI)")
 
     c = sub.add_parser("check", help="render fixed cases on several devices and compare every AOV")
     c.add_argument("--device", default="all", metavar="NAME|all",
@@ -251,6 +253,9 @@ def build_parser() -> argparse.ArgumentParser:
     c.add_argument("--width", type=_positive_int, default=96, metavar="W")
     c.add_argument("--height", type=_positive_int, default=64, metavar="H")
     c.add_argument("--json", metavar="REPORT", help="also write the report as JSON")
+    c.add_argument("--min-devices", type=_positive_int, default=1, metavar="N",
+                   help="fail unless at least N devices were compared (CI: 2, so a missing "
+                        "implementation cannot pass as agreement)")
     c.add_argument("-q", "--quiet", action="store_true", help="no progress on stderr")
 
     i = sub.add_parser("info", help="describe a scene file",

@@ -3,6 +3,8 @@ resolution, builds programs once, times every pass with OpenCL profiling, and ha
 buffers whose size is known only on the device (count, grow, render again)."""
 from __future__ import annotations
 
+from time import perf_counter as _perf_counter
+
 import numpy as np
 import pyopencl as cl
 import pyopencl.array as cla
@@ -16,6 +18,33 @@ from .passes import (AbufferPass, BinningPass, CompositePass, FragmentsPass, GBu
                      SsaoPass, TonemapPass)
 
 MAX_RETRIES = 8
+# Frame.stats["host"]: where render()'s wall time goes on the host, in order. upload: scene and
+# light uploads (Renderer.render); prepare: per-scene pass setup; enqueue: launching the passes
+# (Python and the driver's enqueue calls); overflow_wait: reading the overflow totals, which waits
+# for the device to finish the frame; readback: copying the AOVs to numpy; stats: the counters
+# read back for Frame.stats; other: the rest of render() (Frame assembly, checks). They add up
+# to stats["wall_ms"]. Device time is in the per-pass *_ms (profiling events).
+HOST_PHASES = ("upload_ms", "prepare_ms", "enqueue_ms", "overflow_wait_ms", "readback_ms", "stats_ms", "other_ms")
+# *_ms keys of Frame.stats that are not a pass's own device time
+NOT_PASS_MS = ("total_ms", "span_ms", "wall_ms")
+
+
+def pass_ms(stats: dict) -> dict:
+    """The device time of each pass (and stage breakdowns) in a Frame.stats dict."""
+    return {k: v for k, v in stats.items() if k.endswith("_ms") and k not in NOT_PASS_MS}
+
+
+class _HostClock:
+    """Accumulates host time per phase between `lap` calls."""
+
+    def __init__(self):
+        self.laps = {}
+        self.last = _perf_counter()
+
+    def lap(self, phase: str) -> None:
+        now = _perf_counter()
+        self.laps[phase] = self.laps.get(phase, 0.0) + (now - self.last) * 1e3
+        self.last = now
 # The G-buffer planes each pipeline's first geometry pass writes (docs/variants.md).
 GEOMETRY_PLANES = {"deferred": layout.PLANES, "light_prepass": layout.THIN_PLANES,
                    "light_indexed": layout.DEPTH_PLANES}
@@ -169,7 +198,9 @@ class Pipeline:
                     has_prev=int(prev_camera is not None), tan_x=tan_x, tan_y=tan_y)
 
     def render(self, scene_res: Resources, camera, width, height, prev_camera=None, time=0.0):
-        """Run every pass; returns (outputs: dict of host arrays, stats dict)."""
+        """Run every pass; returns (outputs: dict of host arrays, stats dict). stats["host"] splits
+        the host's time (see HOST_PHASES)."""
+        clock = _HostClock()
         transparent = bool(self.transparency) and scene_res["n_transparent_tris"] > 0
         self.resize(width, height, transparent)
         res = Resources(buffers=dict(scene_res.buffers), values=dict(scene_res.values))
@@ -183,6 +214,7 @@ class Pipeline:
         for p in self.passes:
             if transparent or p not in self.transparency:
                 p.prepare_scene(scene_res)
+        clock.lap("prepare_ms")
 
         retries = 0
         while True:
@@ -201,7 +233,9 @@ class Pipeline:
                 start = cl.enqueue_marker(self.queue)
                 p.run(res)
                 timings.append((p.name, start, cl.enqueue_marker(self.queue)))
+            clock.lap("enqueue_ms")
             grown = self._grow_overflowing()
+            clock.lap("overflow_wait_ms")
             if not grown:
                 break
             retries += 1
@@ -234,6 +268,7 @@ class Pipeline:
             outputs["fragment_count"] = internal(self.transparency[0].frag_count)[0]
             n = iw * ih                             # only the transmittance plane of the layers
             outputs["transmittance"] = internal(res["layers"][3 * n: 4 * n])[0]
+        clock.lap("readback_ms")
         stats = {f"{name}_ms": (end.profile.end - start.profile.start) * 1e-6 for name, start, end in timings}
         stats["total_ms"] = sum(stats.values())
         if timings:       # first pass's start to last pass's end: the passes plus any gap between them
@@ -261,6 +296,8 @@ class Pipeline:
         for p in self.passes:                      # (pixel, light) pairs the shading evaluated / needed
             if hasattr(p, "pair_stats"):
                 stats.update(p.pair_stats())
+        clock.lap("stats_ms")
+        stats["host"] = clock.laps
         return outputs, stats
 
     def _fragment_stats(self, counts, transparent) -> dict:
@@ -295,6 +332,9 @@ class Pipeline:
                         raise DeviceMemoryError(f"growing {p.name} buffer {ov.name} to {total} entries failed on "
                                                 f"{self.device.name}: {exc}") from None
                     grown.append((ov.name, total, ov.capacity))
-                    # Later passes consumed a truncated buffer: everything is redone.
-                    return grown
+        # Any growth means later passes consumed a truncated buffer: the caller redoes the frame.
+        # Every buffer that overflowed grows now, not one per redo: a pass reads only the entries
+        # its input holds, so a count behind a truncated buffer can only be short (it grows again
+        # on the next redo), never inflated. (The Oclgrind tier's A-buffer and peeling frames went
+        # from 3 and 2 redos to 2 and 1.)
         return grown

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import dataclasses
+import time as _time
 from dataclasses import dataclass, field
 from functools import cached_property
 from typing import Optional
@@ -341,6 +342,7 @@ class Renderer:
         vectors; `time` (seconds) places the scene's light particles."""
         from . import memory, scene_gpu
         from .passes import Resources
+        start = _time.perf_counter()
         if not isinstance(scene, Scene):
             raise TypeError(f"render() needs a clrender.Scene, got {type(scene).__name__}")
         camera = camera or scene.default_camera()
@@ -357,12 +359,18 @@ class Renderer:
         scene_res = Resources(buffers=dict(scene_res.buffers), values={
             **scene_res.values, **scene_gpu.upload_lights(scene, self.device), "ambient": float(scene.ambient),
             "particle_systems": tuple(scene.particle_systems), "sun": scene.sun})
+        upload_ms = (_time.perf_counter() - start) * 1e3
         out, stats = self.pipeline.render(scene_res, camera, self.width, self.height, previous_camera, time)
         stats["device"] = self.device.name
         stats.update(memory.held_bytes(self.pipeline, scene_res))
         stats["time"] = float(time)
-        return Frame(gbuffer=out["gbuffer"], far=camera.far, color=out["color"], light_count=out["light_count"],
-                     image=np.ascontiguousarray(out["image"]), ao=out["ao"], shadow=out["shadow"],
-                     fragment_count=out["fragment_count"], transmittance=out["transmittance"], edges=out["edges"],
-                     stats=stats, tonemap=self.config.tonemap, exposure=float(self.config.exposure),
-                     ldr=out.get("ldr"))
+        frame = Frame(gbuffer=out["gbuffer"], far=camera.far, color=out["color"], light_count=out["light_count"],
+                      image=np.ascontiguousarray(out["image"]), ao=out["ao"], shadow=out["shadow"],
+                      fragment_count=out["fragment_count"], transmittance=out["transmittance"], edges=out["edges"],
+                      stats=stats, tonemap=self.config.tonemap, exposure=float(self.config.exposure),
+                      ldr=out.get("ldr"))
+        stats["wall_ms"] = (_time.perf_counter() - start) * 1e3      # what the caller waited for
+        host = {"upload_ms": upload_ms, **stats["host"]}
+        host["other_ms"] = max(stats["wall_ms"] - sum(host.values()), 0.0)
+        stats["host"] = host
+        return frame

@@ -25,7 +25,7 @@ import pytest
 import clrender
 from clrender import Camera, Scene, SceneError, memory, structs
 from clrender.device import DeviceError
-from helpers import assert_scene_error
+from helpers import assert_scene_error, SHADING_TOL
 from reference import shading as ref_shading
 from reference.raster import pixel_exact_camera, rasterize, screen_to_world, triangles_scene
 
@@ -181,7 +181,7 @@ def test_odd_resolutions_match_reference(make_renderer, size):
         assert frame.image.shape == (h, w, 3) and frame.color.shape == (h, w, 3)
         assert_matches_reference(frame, scene, cam, w, h, stats=("invalid", "culled_near", "triangles_in"))
         expect = ref_shading.shade_frame(frame, cam, scene.lights, scene.ambient)
-        np.testing.assert_allclose(frame.color, expect, rtol=2e-3, atol=2e-3 * max(float(expect.max()), 1e-3))
+        np.testing.assert_allclose(frame.color, expect, rtol=0, atol=SHADING_TOL * max(float(expect.max()), 1e-3))
     if w * h > 100:
         assert (frame.triangle_id >= 0).mean() > 0.3
 

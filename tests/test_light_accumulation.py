@@ -21,6 +21,7 @@ shaded), and the (pixel, light) pair statistics of every mode.
 import numpy as np
 import pytest
 
+from helpers import SHADING_TOL
 import clrender
 from clrender import Camera, memory, structs
 from reference import shading as ref
@@ -107,7 +108,7 @@ def test_shading_matches_reference(make_renderer, device, mode):
     assert ok.sum() > 0.95 * fg.sum() and info["specular"][ok].max() > 0.2
     err = np.abs(frame.color.astype(np.float64) - expect)
     err[~ok] = 0
-    assert err.max() <= 2e-3 * float(expect.max()), f"{mode}: max |color - reference| {err.max():.4g}"
+    assert err.max() <= SHADING_TOL * float(expect.max()), f"{mode}: max |color - reference| {err.max():.4g}"
     assert np.all(frame.color[~fg] == 0)
 
 

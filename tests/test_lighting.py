@@ -16,6 +16,7 @@
 import numpy as np
 import pytest
 
+from helpers import SHADING_TOL
 import clrender
 from clrender import Camera, Material, Scene, structs
 from reference import shading as ref
@@ -555,7 +556,7 @@ def test_shading_matches_reference(make_renderer, device):
     err = np.abs(frame.color.astype(np.float64) - expect)
     err[~ok] = 0
     worst = np.unravel_index(np.argmax(err), err.shape)
-    assert err.max() <= 2e-3 * peak, (
+    assert err.max() <= SHADING_TOL * peak, (
         f"max |color - reference| {err.max():.4g} at (y, x, c) {worst}: got {frame.color[worst]:.5g}, "
         f"expected {expect[worst]:.5g} (brightest {peak:.4g}); mean error {err[ok].mean():.3g}")
 

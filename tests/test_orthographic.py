@@ -22,6 +22,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from helpers import SHADING_TOL
 import clrender
 from clrender import Camera, Material
 from reference import shading as ref
@@ -284,7 +285,7 @@ def lit_room():
     return scene
 
 
-def assert_shading_matches(frame, camera, scene, tol=2e-3):
+def assert_shading_matches(frame, camera, scene, tol=SHADING_TOL):
     fg = frame.triangle_id >= 0
     assert fg.mean() > 0.8
     expect, info = ref.shade_frame(frame, camera, scene.lights, scene.ambient, details=True)
@@ -534,7 +535,7 @@ def test_ortho_transparency_matches_reference(make_renderer, device, mode):
     assert ok.mean() > 0.97
     np.testing.assert_allclose(frame.transmittance[ok], exp.transmittance[ok], atol=1e-5)
     err = np.abs(frame.color.astype(np.float64) - exp.color)[ok]
-    assert err.max() <= 2e-3 * float(exp.color.max()), err.max()
+    assert err.max() <= SHADING_TOL * float(exp.color.max()), err.max()
 
 
 # -- loaders and the command line --------------------------------------------------------------------------------

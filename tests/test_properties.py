@@ -8,7 +8,7 @@ same soups) to every G-buffer field, and checks invariances no single example pi
     half a unorm8 step, specular power within one log2unorm8 step;
   * tiled shading == brute force within 1e-5 of the brightest pixel (exact on PoCL; the tolerance
     leaves GPU compilers room to contract differently), and brute force == the float64 shading
-    reference (tests/reference/shading.py) within 2e-3 of the brightest pixel (measured <= 6e-5);
+    reference (tests/reference/shading.py) within 2e-4 of the brightest pixel (measured <= 6e-5);
   * shuffling the scene's triangle order (and its vertex order) changes nothing: ids map through the
     permutation, depth/normals/albedo bit-identical, color identical;
   * tile_size 8/16/32 and light_tile_size 8/16/32 change nothing: G-buffer bit-identical, color
@@ -22,6 +22,7 @@ import numpy as np
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+from helpers import SHADING_TOL_RANDOM
 from clrender import Camera, Material, Scene, structs
 from clrender.gbuffer import linear_to_srgb8
 from clrender.scene import vertex_normals
@@ -139,7 +140,7 @@ def test_tiled_shading_equals_brute_force_and_reference(make_renderer, p):
     expect, info = ref_shading.shade_frame(brute, cam, scene.lights, scene.ambient, details=True)
     ok = info["min_abs_ndotl"] > 1e-4          # the specular term jumps at N·L = 0 (see test_lighting.py)
     err = np.abs(brute.color.astype(np.float64) - expect)[ok]
-    assert err.size == 0 or err.max() <= 2e-3 * max(float(expect.max()), 1e-6), f"vs reference: {err.max():.3g}"
+    assert err.size == 0 or err.max() <= SHADING_TOL_RANDOM * max(float(expect.max()), 1e-6), f"vs reference: {err.max():.3g}"
     fg = brute.triangle_id >= 0
     assert fg.mean() > 0.2
     if p["count"] >= 60 and p["radius"][0] >= 0.5:       # a black or ambient-only frame must fail
