@@ -190,6 +190,22 @@ def render_options(args) -> dict:
     return options
 
 
+def check_output_options(args, images) -> None:
+    """--bit-depth 16 (PNG only), --exr (OpenEXR installed) and --video (a known type, ffmpeg
+    for .mp4) against the planned images, before anything renders."""
+    if getattr(args, "bit_depth", 8) == 16:
+        for image in images:
+            if Path(image).suffix.lower() != ".png":
+                raise CLIError(f"--bit-depth 16: {image} is not a .png (16-bit images are PNG only)")
+    if getattr(args, "exr", False) and not exr_available():
+        raise CLIError(f"--exr: {EXR_MISSING}")
+    if getattr(args, "video", None) is not None:
+        try:
+            check_video_path(args.video)
+        except (ValueError, RuntimeError) as exc:
+            raise CLIError(f"--video: {exc}") from None
+
+
 def cmd_render(args) -> int:
     from .device import default_device_info
     from .renderer import Renderer
@@ -204,19 +220,10 @@ def cmd_render(args) -> int:
     exr = bool(getattr(args, "exr", False))
     video = getattr(args, "video", None)
     fps = 24.0 if getattr(args, "fps", None) is None else args.fps
-    if bit_depth == 16:
-        for image in images:
-            if image.suffix.lower() != ".png":
-                raise CLIError(f"--bit-depth 16: {image} is not a .png (16-bit images are PNG only)")
-    if exr and not exr_available():
-        raise CLIError(f"--exr: {EXR_MISSING}")
+    check_output_options(args, images)
     if video is not None:
         if not (np.isfinite(fps) and fps > 0):
             raise CLIError(f"--fps: expected a positive number, got {fps!r}")
-        try:
-            check_video_path(video)
-        except (ValueError, RuntimeError) as exc:
-            raise CLIError(f"--video: {exc}") from None
     elif getattr(args, "fps", None) is not None:
         _note(args, f"{PROG}: note: --fps has no effect on a still without --video")
     _check_distinct(scenes, images, args.aov, exr, video)

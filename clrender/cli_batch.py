@@ -11,9 +11,9 @@ from contextlib import contextmanager
 from pathlib import Path
 
 from . import frames as _frames
-from .aov_io import EXR_MISSING, check_video_path, exr_available, write_video
+from .aov_io import write_video
 from .batch import CameraOverride, Outputs, plan_tasks, run_tasks
-from .cli import PROG, CLIError, _note, _one_line
+from .cli import PROG, CLIError, _note, _one_line, check_output_options
 
 SCHEDULER_TIMEOUT_S = 10
 
@@ -104,13 +104,6 @@ def cmd_render_frames(args, options: dict) -> int:
     if not (0 < fps < float("inf")):
         raise CLIError(f"--fps: expected a positive number, got {fps!r}")
     numbers = _frame_numbers(args, fps)
-    if args.exr and not exr_available():
-        raise CLIError(f"--exr: {EXR_MISSING}")
-    if args.video is not None:
-        try:
-            check_video_path(args.video)
-        except (ValueError, RuntimeError) as exc:
-            raise CLIError(f"--video: {exc}") from None
     camera = CameraOverride(args.camera_eye, args.camera_target, args.fov, args.ortho)
     if args.fov is not None and args.ortho is not None:
         raise CLIError("--fov (perspective) and --ortho (orthographic) exclude each other")
@@ -120,8 +113,7 @@ def cmd_render_frames(args, options: dict) -> int:
                                           options=tuple(sorted(options.items())), camera=camera, device=args.device)
     except ValueError as exc:
         raise CLIError(str(exc)) from None
-    if args.bit_depth == 16 and any(Path(t.image).suffix.lower() != ".png" for t in tasks):
-        raise CLIError("--bit-depth 16: 16-bit images are PNG only")
+    check_output_options(args, [t.image for t in tasks])
     inputs = {os.path.realpath(s) for s in args.scenes}
     for task in tasks:
         for p in task.paths():

@@ -50,11 +50,10 @@ def probe_error(info) -> Optional[str]:
         answer = json.loads(path.read_text())["error"]
     except (OSError, ValueError, KeyError):
         answer = _ask_child(info)
+        from .aov_io import atomic_write
+        text = json.dumps({"device": info.label, "error": answer})
         try:
-            path.parent.mkdir(parents=True, exist_ok=True)
-            tmp = path.with_suffix(f".{os.getpid()}.tmp")
-            tmp.write_text(json.dumps({"device": info.label, "error": answer}))
-            os.replace(tmp, path)
+            atomic_write(path, lambda tmp: Path(tmp).write_text(text))
         except OSError:
             pass                          # an unwritable cache only costs a probe next time
     _answers[key] = answer

@@ -190,11 +190,14 @@ def _fingerprint(scene: Scene) -> tuple:
     return arrays, tuple(np.shape(a) for a in arrays), tuple(scene.materials), tuple(scene.textures)
 
 
+def _identical(xs, ys) -> bool:
+    """The same objects, in the same order (identity, not equality)."""
+    return len(xs) == len(ys) and all(x is y for x, y in zip(xs, ys))
+
+
 def _same(a: tuple, b: tuple) -> bool:
     """Fingerprints of the same objects (compared by identity) and shapes."""
-    return (a[1] == b[1] and all(x is y for x, y in zip(a[0], b[0])) and len(a[2]) == len(b[2])
-            and all(x is y for x, y in zip(a[2], b[2])) and len(a[3]) == len(b[3])
-            and all(x is y for x, y in zip(a[3], b[3])))
+    return a[1] == b[1] and _identical(a[0], b[0]) and _identical(a[2], b[2]) and _identical(a[3], b[3])
 
 
 _UPLOADS: dict = {}
@@ -338,8 +341,7 @@ def _update(scene: Scene, device, old: tuple, new: tuple, res: Resources) -> boo
                                                                 (a is None or b is None))):
             return False
         changed.append(name)
-    if not (len(old[2]) == len(new[2]) and all(x is y for x, y in zip(old[2], new[2]))
-            and len(old[3]) == len(new[3]) and all(x is y for x, y in zip(old[3], new[3]))):
+    if not (_identical(old[2], new[2]) and _identical(old[3], new[3])):     # materials, textures
         return False
     where, nv = scene.source, len(scene.positions)
     if "triangles" in changed and scene.triangle_count and (scene.triangles.min() < 0
