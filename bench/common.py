@@ -50,6 +50,33 @@ def time_renders(renderer, scene, camera, warmup: int, repeats: int, **render_ar
     return stats, walls, frame
 
 
+def time_user_frames(renderer, scene, camera, warmup: int, repeats: int, read=("color", "depth"), **render_args):
+    """Like time_renders, and the frame a user waits for: render() then reading `read` to numpy
+    (clrender reads a Frame's arrays on first access). Returns (stats, render() wall ms, render()
+    + reads wall ms, last frame)."""
+    frame = None
+    for _ in range(warmup):
+        frame = renderer.render(scene, camera, **render_args)
+        for name in read:
+            getattr(frame, name)
+    stats, walls, users = [], [], []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        frame = renderer.render(scene, camera, **render_args)
+        t1 = time.perf_counter()
+        for name in read:
+            getattr(frame, name)
+        users.append((time.perf_counter() - t0) * 1e3)
+        walls.append((t1 - t0) * 1e3)
+        stats.append(frame.stats)
+    return stats, walls, users, frame
+
+
+def host_medians(stats: list[dict]) -> dict:
+    """Median of each Frame.stats["host"] phase (ms) over frames."""
+    return {k: statistics.median(s["host"][k] for s in stats) for k in stats[0]["host"]}
+
+
 def environment() -> dict:
     try:
         commit = subprocess.run(["git", "-C", str(REPO), "rev-parse", "--short", "HEAD"],

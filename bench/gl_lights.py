@@ -416,6 +416,30 @@ class GLLightsPeer(GLPeer):
         out["color"] = rd(self.color_fbo, 0, 3)
         return out
 
+    def _read_color_depth(self) -> tuple:
+        """What a user of the frame reads: the linear HDR colour and the view depth, row 0 on top."""
+        W, H = self.width, self.height
+        color = np.frombuffer(self.color_fbo.read(components=3, attachment=0, dtype="f4"), np.float32)
+        depth = np.frombuffer(self.fbo.read(components=1, attachment=0, dtype="f4"), np.float32)
+        return (np.ascontiguousarray(color.reshape(H, W, 3)[::-1]), np.ascontiguousarray(depth.reshape(H, W)[::-1]))
+
+    def time_frame_readback(self, camera, repeats: int = 10, warmup: int = 3) -> list[float]:
+        """Wall-clock ms of the frame a user waits for: G-buffer + lights + combine + glFinish +
+        glReadPixels of the colour and the depth into numpy (clrender's counterpart: render()
+        then Frame.color and Frame.depth)."""
+        with self.ctx:
+            for _ in range(max(0, warmup)):
+                self._draw(camera)
+                self._read_color_depth()
+            times = []
+            for _ in range(int(repeats)):
+                t0 = time.perf_counter()
+                self._draw(camera)
+                self.ctx.finish()
+                self._read_color_depth()
+                times.append((time.perf_counter() - t0) * 1e3)
+            return times
+
     def time_frame_gbuffer_only(self, camera, repeats: int = 10, warmup: int = 3) -> list[float]:
         """Wall-clock ms of GLPeer's G-buffer pass alone (+ glFinish), for a pass breakdown."""
         with self.ctx:

@@ -11,6 +11,11 @@ Prints the median ms of every pass from OpenCL profiling events (the ``*_ms`` ke
 total), the same scene with ``shadows=False`` (the sun and spots unshadowed) as the baseline,
 and writes a JSON record (bench/results/shadows-*.json) and the picture (tone-mapped image of
 the shadowed frame). Exits with a message when the scene is absent.
+
+The shadowed frame is timed with the chunk cull (RenderConfig.chunk_cull, the default) and
+without, frames interleaved (on, off, on, off...) in one process; the record's ``chunk_cull``
+entry has both medians of the camera's setup and the maps' setup / binning / raster, and
+whether the shadow atlas and the G-buffer are bit-identical (``--no-ab``: the cull only).
 """
 from __future__ import annotations
 
@@ -75,6 +80,51 @@ def time_moving_camera(args, scene, camera) -> dict:
     return {"median": med}
 
 
+def time_interleaved(renderers: dict, scene, camera, warmup: int, repeats: int) -> dict:
+    """Frames of each renderer in turn (A, B, A, B...): name -> (stats, wall ms, last frame,
+    (shadow atlas maps, G-buffer) of the last frame)."""
+    for _ in range(warmup):
+        for r in renderers.values():
+            r.render(scene, camera)
+    stats, walls, last = ({name: [] for name in renderers} for _ in range(3))
+    for _ in range(repeats):
+        for name, r in renderers.items():
+            t0 = time.perf_counter()
+            frame = r.render(scene, camera)
+            walls[name].append((time.perf_counter() - t0) * 1e3)
+            stats[name].append(frame.stats)
+            last[name] = frame
+    return {name: (stats[name], walls[name], last[name], (shadow_maps(r), np.array(last[name].gbuffer)))
+            for name, r in renderers.items()}
+
+
+def shadow_maps(renderer) -> list:
+    """Each map's square of the shadow atlas (the atlas between squares is never written)."""
+    shadow = renderer.pipeline.shadow
+    lay = shadow.layout
+    atlas = shadow.atlas.get()[: lay.atlas_width * lay.atlas_height].reshape(lay.atlas_height, lay.atlas_width)
+    return [atlas[v.y0:v.y0 + v.size, v.x0:v.x0 + v.size].copy() for v in lay.views]
+
+
+CULL_KEYS = ("setup_ms", "shadow_ms", "shadow_setup_ms", "shadow_binning_ms", "shadow_raster_ms", "total_ms")
+
+
+def compare_chunk_cull(on, off) -> dict:
+    """Medians with and without the chunk cull, their ratio, and bit-identity of maps and G-buffer."""
+    med_on, med_off = medians(on[0]), medians(off[0])
+    maps_same = len(on[3][0]) == len(off[3][0]) and all(np.array_equal(a, b) for a, b in zip(on[3][0], off[3][0]))
+    out = {"on": {k: med_on[k] for k in CULL_KEYS}, "off": {k: med_off[k] for k in CULL_KEYS},
+           "ratio": {k: med_on[k] / med_off[k] for k in CULL_KEYS if med_off[k]},
+           "maps_identical": bool(maps_same), "gbuffer_identical": bool(np.array_equal(on[3][1], off[3][1])),
+           "chunks": int(on[2].stats["chunks"]), "camera_culled_chunks": int(on[2].stats["culled_chunks"])}
+    print(f"\nchunk cull, medians over {len(on[0])} interleaved frames each (ms):   on       off    on/off")
+    for k in CULL_KEYS:
+        print(f"  {k[:-3]:<22} {med_on[k]:9.2f} {med_off[k]:9.2f}   {out['ratio'].get(k, float('nan')):5.2f}")
+    print(f"  camera: {out['camera_culled_chunks']} of {out['chunks']} chunks culled; shadow maps bit-identical: "
+          f"{maps_same}, G-buffer bit-identical: {out['gbuffer_identical']}")
+    return out
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--repeats", type=int, default=3)
@@ -90,6 +140,7 @@ def main(argv=None) -> int:
     ap.add_argument("--lights", type=int, default=1024)
     ap.add_argument("--intensity", type=float, default=0.15, help="of the random point lights")
     ap.add_argument("--no-baseline", action="store_true", help="skip the shadows=False baseline")
+    ap.add_argument("--no-ab", action="store_true", help="skip the frames without the chunk cull")
     ap.add_argument("--picture", default=str(REPO / "docs" / "images" / "sponza-shadows.png"),
                     help="where to save the shadowed frame's image ('' to skip)")
     args = ap.parse_args(argv)
@@ -109,20 +160,28 @@ def main(argv=None) -> int:
     record = {"scene": SPONZA.name, "width": args.width, "height": args.height, "repeats": args.repeats,
               "warmup": args.warmup, "filter": args.filter, "cascades": args.cascades, "sun_size": args.sun_size,
               "spot_size": args.spot_size, "spots": n_shadowed, "lights": args.lights, "sun_direction": SUN_DIR}
-    # Every map rendered every frame (the cost of a frame whose lights or camera all move), then
-    # no shadows; `reuse_static_spots` below times a moving camera with the static spots' maps kept.
-    runs = [("shadows", dict(shadows=True, shadow_map_reuse=False))] + (
-        [] if args.no_baseline else [("no_shadows", dict(shadows=False))])
-    frame = None
-    for name, opts in runs:
+    # Every map rendered every frame (the cost of a frame whose lights or camera all move), with
+    # the chunk cull and without (interleaved), then no shadows; `reuse_static_spots` below times a
+    # moving camera with the static spots' maps kept.
+    shadowed = dict(shadows=True, shadow_map_reuse=False)
+    ab = {"shadows": clrender.Renderer(args.width, args.height, device=args.device, shadow_filter=args.filter,
+                                       sun_cascades=args.cascades, chunk_cull=True, **shadowed)}
+    if not args.no_ab:
+        ab["shadows_no_chunk_cull"] = clrender.Renderer(args.width, args.height, device=args.device,
+                                                        shadow_filter=args.filter, sun_cascades=args.cascades,
+                                                        chunk_cull=False, **shadowed)
+    results = time_interleaved(ab, scene, camera, args.warmup, args.repeats)
+    if not args.no_baseline:
         r = clrender.Renderer(args.width, args.height, device=args.device, shadow_filter=args.filter,
-                              sun_cascades=args.cascades, **opts)
-        stats, walls, last = time_renders(r, scene, camera, args.warmup, args.repeats)
+                              sun_cascades=args.cascades, shadows=False)
+        results["no_shadows"] = time_renders(r, scene, camera, args.warmup, args.repeats) + (None,)
+    frame = None
+    for name, (stats, walls, last, _) in results.items():
         med = medians(stats)
-        record.setdefault("device", r.device.name)
+        record.setdefault("device", last.stats["device"])
         record[name] = {"median": med, "wall_ms_median": statistics.median(walls),
                         "frames_ms": [s["total_ms"] for s in stats]}
-        print(f"\n{name} on {r.device.name}, median of {args.repeats} frames after {args.warmup} warm-up (ms):")
+        print(f"\n{name} on {last.stats['device']}, median of {args.repeats} frames after {args.warmup} warm-up (ms):")
         for k in pass_keys(med):
             print(f"  {k[:-3]:<15} {med[k]:9.2f}")
         print(f"  {'total':<15} {med['total_ms']:9.2f}   (wall incl. readback: {statistics.median(walls):.1f})")
@@ -133,6 +192,8 @@ def main(argv=None) -> int:
             frame = last
             vis = last.shadow[last.triangle_id >= 0]
             record["shadowed_fraction_per_light"] = [float((vis[:, k] < 0.5).mean()) for k in range(vis.shape[1])]
+    if "shadows_no_chunk_cull" in results:
+        record["chunk_cull"] = compare_chunk_cull(results["shadows"], results["shadows_no_chunk_cull"])
 
     if not args.no_baseline:
         record["reuse_static_spots"] = time_moving_camera(args, scene, camera)

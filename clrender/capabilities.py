@@ -23,6 +23,12 @@ def is_simulator(dev: cl.Device) -> bool:
     return any(name in text for name in SIMULATOR_NAMES)
 
 
+def fill_buffer_marks_initialized(dev: cl.Device) -> bool:
+    """Whether clEnqueueFillBuffer's output counts as written: not on Oclgrind, whose
+    uninitialized-value checker would then report every later read of a zeroed buffer."""
+    return not is_simulator(dev)
+
+
 _COMPILER_PROBE = "kernel void probe(global int* out) { out[get_global_id(0)] = 1; }"
 _compiles: dict = {}
 

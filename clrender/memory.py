@@ -16,6 +16,7 @@ import pyopencl.array as cla
 from . import gbuffer as layout
 from . import structs
 from .passes.base import RenderPass
+from .passes.binning import initial_list_capacity
 
 
 class DeviceMemoryError(ValueError):
@@ -89,9 +90,13 @@ def estimate(width: int, height: int, config, scene=None) -> dict:
             "scene.triangles": 16 * t,
             "scene.texels": 4 * texels,
             "scene.lights": (structs.light_dtype.itemsize + 16) * n_lights,   # + culling spheres
-            "setup.per_triangle": (9 + structs.prim_dtype.itemsize) * t,
+            "setup.per_triangle": _setup_per_triangle(t, config),
             "setup.prims": structs.prim_dtype.itemsize * max(1024, t + t // 8),
+            "binning.tile_prims": 4 * initial_list_capacity(tiles, t),
         })
+        if getattr(config, "chunk_cull", False):
+            from .passes.chunk_cull import n_chunks
+            buffers["chunk_cull.bounds"] = 32 * n_chunks(t)
         if config.light_culling == "quads":               # + pixel and tile rectangles
             buffers["light_quads.rects"] = 32 * n_lights
         if getattr(config, "transparency", "screen_door") != "screen_door" and any(
@@ -126,10 +131,22 @@ def estimate(width: int, height: int, config, scene=None) -> dict:
     return {"total": sum(buffers.values()), "largest": buffers[name], "largest_name": name}
 
 
+def _setup_per_triangle(t: int, config) -> int:
+    """setup's per-triangle buffers (passes/setup.py): counts, offsets, statuses and staged prims;
+    with the chunk cull they are per chunk slot, plus the cull's chunk lists (the chunk boxes,
+    shared by every view, are counted once: "chunk_cull.bounds")."""
+    prim = structs.prim_dtype.itemsize
+    if not getattr(config, "chunk_cull", False):
+        return (9 + prim) * t
+    from .passes.chunk_cull import CHUNK, n_chunks
+    c = n_chunks(t)
+    return (8 + prim) * c * CHUNK + t + 8 * c + (5 * c + 4)
+
+
 def _transparency(px: int, tiles: int, n_tris: int, n_blend: int, config) -> dict:
     """Buffers of the transparency passes (allocated when a scene has BLEND triangles)."""
     out = {"fragments.counts+range": 16 * px, "fragments.binning": 44 * tiles,
-           "fragments.setup": (9 + structs.prim_dtype.itemsize) * n_tris
+           "fragments.setup": _setup_per_triangle(n_tris, config)
            + structs.prim_dtype.itemsize * max(1024, n_blend + n_blend // 8),
            "composite.color": 12 * px}
     if config.transparency == "abuffer":
@@ -211,8 +228,8 @@ def _pipeline_buffers(px: int, tiles: int, config, scene) -> dict:
         if config.msaa > 1:                                 # a setup, binning and raster per sub-sample
             t = scene.triangle_count if scene is not None else 0
             prims = structs.prim_dtype.itemsize * max(1024, t + t // 8)
-            out["msaa_geometry"] = config.msaa * (8 * px + 12 * tiles + 4 * 8 * tiles + prims
-                                                  + (9 + structs.prim_dtype.itemsize) * t)
+            out["msaa_geometry"] = config.msaa * (8 * px + 12 * tiles + 4 * initial_list_capacity(tiles, t) + prims
+                                                  + _setup_per_triangle(t, config))
     return out
 
 

@@ -5,11 +5,14 @@ from __future__ import annotations
 
 from time import perf_counter as _perf_counter
 
+import weakref
+
 import numpy as np
 import pyopencl as cl
 import pyopencl.array as cla
 
 from . import gbuffer as layout
+from .frame import Readback, SnapshotPool
 from .passes.base import zeros
 from .passes.encode import EncodePass
 from .passes.resolve import ResolvePass
@@ -105,6 +108,11 @@ class Pipeline:
         self.matrices = {name: zeros(self.queue, 16, np.float32)
                          for name in ("view_proj", "prev_view_proj", "view_matrix", "camera_params")}
         self.constants = {"srgb_encode": cla.to_device(self.queue, layout.srgb_encode_table())}
+        # Frames read their AOVs on first access (clrender/frame.py); the last one is retired
+        # (its unread AOVs copied aside on the device) before the next frame overwrites them.
+        self.snapshots = SnapshotPool(self.queue, min(device.cl_device.global_mem_size // 8, 1 << 30))
+        self._pending = None
+        self._totals = None           # the overflow totals gathered for one read
 
     def _lighting_passes(self, device, config) -> list:
         """From the light lists to the colour (docs/variants.md). deferred: shading from the
@@ -168,6 +176,7 @@ class Pipeline:
         (width, height)."""
         k = self.config.supersample
         if self.size != (width, height):
+            self.snapshots.clear()
             for p in self.passes:
                 if p not in self.transparency:
                     p.allocate(*((width, height) if p in self.post else (k * width, k * height)))
@@ -201,6 +210,9 @@ class Pipeline:
         """Run every pass; returns (outputs: dict of host arrays, stats dict). stats["host"] splits
         the host's time (see HOST_PHASES)."""
         clock = _HostClock()
+        previous = self._pending() if self._pending is not None else None
+        if previous is not None:
+            previous.retire()            # before anything below overwrites what it still reads
         transparent = bool(self.transparency) and scene_res["n_transparent_tris"] > 0
         self.resize(width, height, transparent)
         res = Resources(buffers=dict(scene_res.buffers), values=dict(scene_res.values))
@@ -242,32 +254,7 @@ class Pipeline:
             if retries > MAX_RETRIES:
                 raise RuntimeError(f"buffers kept overflowing after {MAX_RETRIES} retries: {grown}")
 
-        iw, ih = k * width, k * height            # the AOVs rendered before the resolve: its nearest sample
-
-        def internal(buf, planes=1):
-            a = buf.get(queue=self.queue)[: planes * iw * ih].reshape(planes, ih, iw)
-            return np.ascontiguousarray(a[:, k // 2::k, k // 2::k]) if k > 1 else a
-
-        outputs = {
-            "gbuffer": res["gbuffer"].get(queue=self.queue).reshape(len(layout.PLANES), height, width),
-            "color": np.moveaxis(res["color"].get(queue=self.queue).reshape(3, height, width), 0, -1),
-            "light_count": internal(res["light_count"])[0],
-            "image": res["image"].get(queue=self.queue).reshape(height, width, 1).view(np.uint8)[..., :3],
-            "shadow": self._shadow_planes(res, internal),
-            # Without SSAO no kernel runs: the term is 1 everywhere, made here.
-            "ao": internal(res["ao"])[0] if self.config.ssao else np.ones((height, width), np.float32),
-            "fragment_count": np.zeros((height, width), np.int32),
-            "transmittance": np.ones((height, width), np.float32),
-            "edges": (res["edges"].get(queue=self.queue).reshape(height, width) if self.config.edge_aa
-                      else np.zeros((height, width), np.uint8)),
-        }
-        if self.config.ldr_effects:              # the final LDR planes the image was encoded from
-            outputs["ldr"] = np.moveaxis(res["ldr"].get(queue=self.queue)[: 3 * width * height]
-                                         .reshape(3, height, width), 0, -1).copy()
-        if transparent:
-            outputs["fragment_count"] = internal(self.transparency[0].frag_count)[0]
-            n = iw * ih                             # only the transmittance plane of the layers
-            outputs["transmittance"] = internal(res["layers"][3 * n: 4 * n])[0]
+        readback = self._readback(res, width, height, transparent)
         clock.lap("readback_ms")
         stats = {f"{name}_ms": (end.profile.end - start.profile.start) * 1e-6 for name, start, end in timings}
         stats["total_ms"] = sum(stats.values())
@@ -283,7 +270,7 @@ class Pipeline:
         stats["geometry_passes"] = 1 if self.config.pipeline == "deferred" else 1 + self.config.msaa
         from .memory import pixel_buffers
         stats["bytes_per_pixel"] = pixel_buffers(self.config)
-        stats.update(self._fragment_stats(outputs["fragment_count"], transparent))
+        stats.update(self._fragment_stats(readback, transparent))
         for p in self.transparency if transparent else ():
             stats.update(p.stage_stats())         # breakdowns of their pass's ms, not added to total_ms
         if self.shadow is not None and res["shadow_view_count"]:
@@ -298,12 +285,14 @@ class Pipeline:
                 stats.update(p.pair_stats())
         clock.lap("stats_ms")
         stats["host"] = clock.laps
-        return outputs, stats
+        self._pending = weakref.ref(readback)
+        return readback, stats
 
-    def _fragment_stats(self, counts, transparent) -> dict:
+    def _fragment_stats(self, readback, transparent) -> dict:
         """Transparent fragments: total, per-pixel max, and those max_fragments_per_pixel dropped."""
         if not transparent:
             return {"fragments": 0, "fragments_max": 0, "fragments_dropped": 0}
+        counts = readback.get("fragment_count")
         total = int(counts.sum(dtype=np.int64))
         cap = self.config.max_fragments_per_pixel
         kept = int(np.minimum(counts, cap).sum(dtype=np.int64)) if cap and self.config.transparency == "abuffer" \
@@ -311,27 +300,80 @@ class Pipeline:
         return {"fragments": total, "fragments_max": int(counts.max()) if counts.size else 0,
                 "fragments_dropped": total - kept}
 
-    def _shadow_planes(self, res, internal) -> np.ndarray:
-        """Frame.shadow: (H, W, K) visibility, K = shadow planes (0 without shadows)."""
-        k = res["shadow_planes"]
-        w, h = res["width"], res["height"]
-        if not k:
-            return np.ones((h, w, 0), np.float32)
-        return np.ascontiguousarray(np.moveaxis(internal(res["shadow"], k), 0, -1))
+    def _readback(self, res, width, height, transparent) -> Readback:
+        """The frame's AOVs as device sources (read on first access, clrender/frame.py) and
+        makers of the constant ones. AOVs rendered before the resolve are at k·W × k·H: the
+        Frame gets each output pixel's nearest sample."""
+        k = self.config.supersample
+        iw, ih = k * width, k * height
+        n, out_px = iw * ih, width * height
+        rb = Readback(self.queue, self.snapshots)
+
+        def internal(planes=1, last_axis=False):
+            def finish(a):
+                a = a.reshape(planes, ih, iw)
+                a = np.ascontiguousarray(a[:, k // 2::k, k // 2::k]) if k > 1 else a
+                return np.ascontiguousarray(np.moveaxis(a, 0, -1)) if last_axis else a[0]
+            return finish
+
+        for i in range(len(layout.PLANES)):
+            rb.add(f"gbuffer:{i}", res["gbuffer"][i * out_px:(i + 1) * out_px], lambda a: a.reshape(height, width))
+        rb.add("color", res["color"][: 3 * out_px], lambda a: np.moveaxis(a.reshape(3, height, width), 0, -1))
+        rb.add("light_count", res["light_count"][:n], internal())
+        rb.add("image", res["image"][:out_px],
+               lambda a: np.ascontiguousarray(a.reshape(height, width, 1).view(np.uint8)[..., :3]))
+        planes = res["shadow_planes"]
+        if planes:
+            rb.add("shadow", res["shadow"][: planes * n], internal(planes, last_axis=True))
+        else:
+            rb.make("shadow", lambda: np.ones((height, width, 0), np.float32))
+        if self.config.ssao:
+            rb.add("ao", res["ao"][:n], internal())
+        else:                                  # no SSAO kernel ran: the term is 1 everywhere
+            rb.make("ao", lambda: np.ones((height, width), np.float32))
+        if transparent:
+            rb.add("fragment_count", self.transparency[0].frag_count[:n], internal())
+            rb.add("transmittance", res["layers"][3 * n: 4 * n], internal())    # the layers' transmittance plane
+        else:
+            rb.make("fragment_count", lambda: np.zeros((height, width), np.int32))
+            rb.make("transmittance", lambda: np.ones((height, width), np.float32))
+        if self.config.edge_aa:
+            rb.add("edges", res["edges"][:out_px], lambda a: a.reshape(height, width))
+        else:
+            rb.make("edges", lambda: np.zeros((height, width), np.uint8))
+        if self.config.ldr_effects:            # the final LDR planes the image was encoded from
+            rb.add("ldr", res["ldr"][: 3 * out_px],
+                   lambda a: np.ascontiguousarray(np.moveaxis(a.reshape(3, height, width), 0, -1)))
+        return rb
+
+    def _read_totals(self, totals: list) -> list:
+        """The int32 first elements of `totals`, gathered on the device and read in one blocking
+        read (the shadow pass alone has two per map: a read each cost a round trip)."""
+        if len(totals) <= 1:
+            return [int(t.get(queue=self.queue)[0]) for t in totals]
+        if self._totals is None or self._totals.size < len(totals):
+            self._totals = cla.empty(self.queue, len(totals), np.int32)
+        for i, t in enumerate(totals):
+            cl.enqueue_copy(self.queue, self._totals.data, t.base_data, byte_count=4, src_offset=t.offset,
+                            dst_offset=4 * i)
+        return [int(v) for v in self._totals.get(queue=self.queue)[: len(totals)]]
 
     def _grow_overflowing(self) -> list:
         grown = []
-        for p in self.passes:
-            for ov in p.overflows():
-                total = int(ov.total.get(queue=self.queue)[0])
-                if total > ov.capacity:
-                    try:
-                        p.grow(ov.name, total)
-                    except cl.Error as exc:
-                        from .memory import DeviceMemoryError
-                        raise DeviceMemoryError(f"growing {p.name} buffer {ov.name} to {total} entries failed on "
-                                                f"{self.device.name}: {exc}") from None
-                    grown.append((ov.name, total, ov.capacity))
+        needs = [(p, ov) for p in self.passes for ov in p.overflows()]
+        largest: dict = {}        # (pass, buffer) -> (need, capacity): shadow maps of one size share buffers
+        for (p, ov), total in zip(needs, self._read_totals([ov.total for _, ov in needs])):
+            need, _ = largest.get((p, ov.name), (0, 0))
+            largest[p, ov.name] = (max(need, total), ov.capacity)
+        for (p, name), (total, capacity) in largest.items():
+            if total > capacity:
+                try:
+                    p.grow(name, total)
+                except cl.Error as exc:
+                    from .memory import DeviceMemoryError
+                    raise DeviceMemoryError(f"growing {p.name} buffer {name} to {total} entries failed on "
+                                            f"{self.device.name}: {exc}") from None
+                grown.append((name, total, capacity))
         # Any growth means later passes consumed a truncated buffer: the caller redoes the frame.
         # Every buffer that overflowed grows now, not one per redo: a pass reads only the entries
         # its input holds, so a count behind a truncated buffer can only be short (it grows again

@@ -3,15 +3,14 @@ from __future__ import annotations
 
 import dataclasses
 import time as _time
-from dataclasses import dataclass, field
-from functools import cached_property
+from dataclasses import dataclass
 from typing import Optional
 
 import numpy as np
 
-from . import gbuffer as layout
 from .camera import Camera
 from .device import Device, DeviceInfo
+from .frame import Frame
 from .scene import Scene
 
 TILE_SIZES = (8, 16, 32)
@@ -59,6 +58,7 @@ class RenderConfig:
     sun_split_lambda: float = 0.75   # cascade splits: lambda·logarithmic + (1 - lambda)·uniform
     shadow_atlas_max: int = 16384    # atlas side limit: maps that do not fit are an error, never dropped
     shadow_map_reuse: bool = True    # keep a map whose light view and scene are unchanged since the last frame
+    chunk_cull: bool = True          # setup skips chunks of 128 triangles a view cannot see (passes/chunk_cull.py; bit-identical)
     transparency: str = "abuffer"    # BLEND materials: "abuffer", "depth_peeling" or "screen_door" (docs/transparency.md)
     peel_layers: int = 4             # depth_peeling: layers peeled per pixel (1..64)
     max_fragments_per_pixel: int = 0   # abuffer: keep only the K nearest fragments (0 = all; drops are counted)
@@ -180,7 +180,7 @@ class RenderConfig:
             raise ValueError(f"refraction must be True or False, got {self.refraction!r}")
 
     def _check_shadow_options(self):
-        for name in ("shadows", "shadow_map_reuse"):
+        for name in ("shadows", "shadow_map_reuse", "chunk_cull"):
             if not isinstance(getattr(self, name), bool):
                 raise ValueError(f"{name} must be True or False, got {getattr(self, name)!r}")
         if self.shadow_filter not in SHADOW_FILTERS:
@@ -206,98 +206,6 @@ class RenderConfig:
         if unknown:
             raise ValueError(f"unknown render option(s) {unknown}; known: {sorted(known)}")
         return cls(**options)
-
-
-@dataclass(frozen=True)
-class Frame:
-    """One rendered frame: the lit HDR color, the display image, and the packed G-buffer with
-    decoded views of it (computed on first access from `gbuffer`, planes × H × W uint32)."""
-    gbuffer: np.ndarray
-    far: float
-    color: np.ndarray           # (H, W, 3) float32 linear HDR
-    light_count: np.ndarray     # (H, W) int32 lights the culling assigned to the pixel's tile
-    image: np.ndarray           # (H, W, 3) uint8 sRGB, tone-mapped color
-    ao: np.ndarray              # (H, W) float32 ambient occlusion in [0, 1], 1 = open; all ones without SSAO
-    shadow: np.ndarray          # (H, W, K) float32 visibility per shadowed light (sun first), K = 0 without
-    fragment_count: np.ndarray  # (H, W) int32 transparent fragments in front of the opaque surface (A-buffer, peeling)
-    transmittance: np.ndarray   # (H, W) float32 what the transparent layers leave of what lies behind (1 = nothing)
-    edges: np.ndarray           # (H, W) uint8 1 where edge_aa marked an edge pixel (all 0 without edge_aa)
-    stats: dict = field(default_factory=dict)
-    # What `image` was encoded from, for deeper outputs (aov_io.display_linear, 16-bit PNG): the
-    # tone-mapping operator and exposure, and with LDR post effects (edge AA, FXAA, hatching) the
-    # final tone-mapped linear planes (H, W, 3) float32 in [0, 1] read back from the device.
-    tonemap: str = "reinhard"
-    exposure: float = 1.0
-    ldr: Optional[np.ndarray] = None
-
-    AOV_NAMES = ("color", "light_count", "depth", "linear_depth", "normal", "albedo", "triangle_id", "velocity",
-                 "specular_intensity", "specular_power", "emissive", "occlusion", "ao", "shadow", "fragment_count", "transmittance", "edges",
-                 "image")
-
-    @property
-    def height(self) -> int:
-        return int(self.gbuffer.shape[1])
-
-    @property
-    def width(self) -> int:
-        return int(self.gbuffer.shape[2])
-
-    @cached_property
-    def triangle_id(self) -> np.ndarray:
-        return layout.decode(self.gbuffer, "triangle_id").copy()
-
-    @cached_property
-    def _background(self) -> np.ndarray:
-        return self.triangle_id < 0
-
-    @cached_property
-    def depth(self) -> np.ndarray:
-        """View-space depth (float32), +inf on background."""
-        d = layout.decode(self.gbuffer, "linear_depth") * np.float32(self.far)
-        return d.astype(np.float32)
-
-    @cached_property
-    def linear_depth(self) -> np.ndarray:
-        return layout.decode(self.gbuffer, "linear_depth").copy()
-
-    @cached_property
-    def normal(self) -> np.ndarray:
-        n = layout.decode(self.gbuffer, "normal")
-        n[self._background] = 0.0
-        return n
-
-    @cached_property
-    def albedo(self) -> np.ndarray:
-        return layout.decode(self.gbuffer, "albedo")
-
-    @cached_property
-    def specular_intensity(self) -> np.ndarray:
-        return layout.decode(self.gbuffer, "specular_intensity")
-
-    @cached_property
-    def specular_power(self) -> np.ndarray:
-        p = layout.decode(self.gbuffer, "specular_power")
-        p[self._background] = 0.0
-        return p
-
-    @cached_property
-    def velocity(self) -> np.ndarray:
-        return layout.decode(self.gbuffer, "velocity")
-
-    @cached_property
-    def emissive(self) -> np.ndarray:
-        """(H, W, 3) emissive factor × texture in [0, 1], before the material's emissive_strength."""
-        return layout.decode(self.gbuffer, "emissive")
-
-    @cached_property
-    def occlusion(self) -> np.ndarray:
-        """(H, W) the material's ambient occlusion (occlusionTexture), 1 = open, 0 on background."""
-        return layout.decode(self.gbuffer, "occlusion")
-
-    def aov(self, name: str) -> np.ndarray:
-        if name not in self.AOV_NAMES:
-            raise ValueError(f"unknown AOV {name!r}; available: {', '.join(self.AOV_NAMES)}")
-        return getattr(self, name)
 
 
 class Renderer:
@@ -360,15 +268,13 @@ class Renderer:
             **scene_res.values, **scene_gpu.upload_lights(scene, self.device), "ambient": float(scene.ambient),
             "particle_systems": tuple(scene.particle_systems), "sun": scene.sun})
         upload_ms = (_time.perf_counter() - start) * 1e3
-        out, stats = self.pipeline.render(scene_res, camera, self.width, self.height, previous_camera, time)
+        readback, stats = self.pipeline.render(scene_res, camera, self.width, self.height, previous_camera, time)
         stats["device"] = self.device.name
         stats.update(memory.held_bytes(self.pipeline, scene_res))
+        stats["frame_copy_bytes"] = self.pipeline.snapshots.held_bytes     # earlier frames' unread AOVs
         stats["time"] = float(time)
-        frame = Frame(gbuffer=out["gbuffer"], far=camera.far, color=out["color"], light_count=out["light_count"],
-                      image=np.ascontiguousarray(out["image"]), ao=out["ao"], shadow=out["shadow"],
-                      fragment_count=out["fragment_count"], transmittance=out["transmittance"], edges=out["edges"],
-                      stats=stats, tonemap=self.config.tonemap, exposure=float(self.config.exposure),
-                      ldr=out.get("ldr"))
+        frame = Frame(width=self.width, height=self.height, far=float(camera.far), stats=stats,
+                      tonemap=self.config.tonemap, exposure=float(self.config.exposure), readback=readback)
         stats["wall_ms"] = (_time.perf_counter() - start) * 1e3      # what the caller waited for
         host = {"upload_ms": upload_ms, **stats["host"]}
         host["other_ms"] = max(stats["wall_ms"] - sum(host.values()), 0.0)

@@ -33,7 +33,8 @@ class PrefixSum:
             raise ValueError(f"scan of {n} items over buffers of {counts.size} and {offsets.size}")
         queue = queue or counts.queue
         if n == 0:
-            total.fill(0, queue=queue)
+            from .passes.base import fill_zero      # (passes.base imports this module)
+            fill_zero(total, queue)
             return
         self._scan(queue, 0, counts.data, n, offsets.data, total.data)
 

@@ -6,9 +6,9 @@ Between animation frames (Scene.set_transform replaces positions, normals, tange
 and previous_positions) only the replaced arrays are written into the existing buffers; the
 texture pool, materials, uvs... stay as they are. The scene and its lights are validated whenever
 they are (re)uploaded (a pose-only update checks what changed), so arrays edited after
-construction cannot reach a kernel with an out-of-range index or a NaN light. Mip chains are
-built once per texture object (box filter in linear space, as GL's glGenerateMipmap does for
-sRGB textures).
+construction cannot reach a kernel with an out-of-range index or a NaN light. The mipmapped
+texture pool is clrender/texture_pool.py's (box filter in linear space, as GL's glGenerateMipmap
+does for sRGB textures; built on the device when it has doubles).
 """
 from __future__ import annotations
 
@@ -16,62 +16,11 @@ import weakref
 
 import numpy as np
 import pyopencl.array as cla
-from PIL import Image
 
 from . import structs
-from .gbuffer import linear_to_srgb8, srgb_to_linear_lut
 from .passes.base import Resources
 from .scene import TEXTURE_SLOTS, Scene, SceneError, Texture
-
-_MIP_CACHE: "weakref.WeakKeyDictionary[Texture, list[np.ndarray]]" = weakref.WeakKeyDictionary()
-
-
-def mip_chain(tex: Texture) -> list[np.ndarray]:
-    """RGBA8 levels, level 0 first, down to 1×1; sizes halve with floor as in GL."""
-    cached = _MIP_CACHE.get(tex)
-    if cached is not None:
-        return cached
-    levels = [tex.rgba]
-    lut = srgb_to_linear_lut()
-    h, w = tex.rgba.shape[:2]
-    if max(h, w) > 1:
-        linear = [lut[tex.rgba[..., c]] if (tex.srgb and c < 3) else tex.rgba[..., c].astype(np.float32) / 255.0
-                  for c in range(4)]
-        while max(h, w) > 1:
-            h, w = max(h // 2, 1), max(w // 2, 1)
-            linear = [np.asarray(Image.fromarray(ch, mode="F").resize((w, h), Image.BOX)) for ch in linear]
-            level = np.empty((h, w, 4), np.uint8)
-            for c in range(4):
-                level[..., c] = (linear_to_srgb8(linear[c]) if (tex.srgb and c < 3)
-                                 else np.floor(np.clip(linear[c], 0, 1) * 255 + 0.5).astype(np.uint8))
-            levels.append(level)
-    _MIP_CACHE[tex] = levels
-    return levels
-
-
-def texture_pool(textures: list[Texture]):
-    """(texels uint32[N], TexInfo[T], TexLevel[L]) for all textures."""
-    infos = np.zeros(max(len(textures), 1), structs.texinfo_dtype)
-    level_records, chunks, offset = [], [], 0
-    for t, tex in enumerate(textures):
-        chain = mip_chain(tex)
-        infos[t] = (len(level_records), len(chain), structs.WRAP[tex.wrap_s], structs.WRAP[tex.wrap_t],
-                    structs.LUT_SRGB if tex.srgb else structs.LUT_LINEAR, (0, 0, 0))
-        for level in chain:
-            h, w = level.shape[:2]
-            level_records.append((offset, w, h, 0))
-            chunks.append(np.ascontiguousarray(level).view(np.uint32).reshape(-1))
-            offset += w * h
-    if offset >= 2**31:
-        raise ValueError(f"textures need {offset} texels; more than 2^31 is not supported")
-    levels = np.array(level_records or [(0, 1, 1, 0)], structs.texlevel_dtype)
-    texels = np.concatenate(chunks) if chunks else np.zeros(1, np.uint32)
-    return texels, infos, levels
-
-
-def decode_tables() -> np.ndarray:
-    """float32[512]: the sRGB decode table (LUT_SRGB) then c / 255 (LUT_LINEAR)."""
-    return np.concatenate([srgb_to_linear_lut(), np.arange(256, dtype=np.float32) / np.float32(255.0)])
+from .texture_pool import upload_pool
 
 
 def _slot_record(tex: int, uv) -> tuple:
@@ -298,7 +247,6 @@ def upload(scene: Scene, device) -> Resources:
         return cla.to_device(q, a if a.size else np.zeros(1, dtype))
 
     textures, materials = device_materials(scene)
-    texels, infos, levels = texture_pool(textures)
     uvs = scene.uvs if scene.extra_uvs is None else np.concatenate([scene.uvs[None], scene.extra_uvs])
     tangents = vertex_tangents(scene)
     res = Resources(buffers={
@@ -310,10 +258,7 @@ def upload(scene: Scene, device) -> Resources:
         "triangles": put(scene.triangles, np.int32),
         "tri_material": put(scene.triangle_material, np.int32),
         "materials": cla.to_device(q, materials),
-        "texels": cla.to_device(q, texels),
-        "tex_infos": cla.to_device(q, infos),
-        "tex_levels": cla.to_device(q, levels),
-        "srgb_lut": cla.to_device(q, decode_tables()),
+        **upload_pool(device, textures),             # texels, tex_infos, tex_levels, srgb_lut
     }, values={"n_tris": scene.triangle_count, "scene_bounds": scene.bounds(),   # bounds: sun shadow fit
                "n_transparent_tris": transparent_triangle_count(scene), "n_vertices": len(scene.positions),
                "has_colors": int(scene.colors is not None), "surface_extras": int(surface_extras(scene))})

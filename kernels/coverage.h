@@ -17,11 +17,22 @@
 
 /* Mask of the lanes of the run starting at fixed-point sample (sx0, sy), one pixel (256) apart,
  * whose centers `p` covers; where any does, *depth holds the lanes' view depths. */
+static inline intV prim_cover_run_in(const Prim* p, int sx0, int sy, int min_x, int max_x, int min_y, int max_y,
+                                     floatV* depth);
+
 static inline intV prim_cover_run(const Prim* p, int sx0, int sy, floatV* depth)
 {
     const int min_x = min(min(p->x[0], p->x[1]), p->x[2]), max_x = max(max(p->x[0], p->x[1]), p->x[2]);
     const int min_y = min(min(p->y[0], p->y[1]), p->y[2]), max_y = max(max(p->y[0], p->y[1]), p->y[2]);
     if (sy < min_y || sy > max_y || sx0 + (VEC - 1) * 256 < min_x || sx0 > max_x) return (intV)0;
+    return prim_cover_run_in(p, sx0, sy, min_x, max_x, min_y, max_y, depth);
+}
+
+/* prim_cover_run for a run inside the prim's bounding box (min_x .. max_y, fixed point), which
+ * the caller has tested (raster.cl tests it once per prim for all the rows it walks). */
+static inline intV prim_cover_run_in(const Prim* p, int sx0, int sy, int min_x, int max_x, int min_y, int max_y,
+                                     floatV* depth)
+{
 
     /* E_k(lane) = base_k + step_k · lane; inside when E_k > thr_k (top-left: thr = -1). */
     intV inside_i;

@@ -20,7 +20,9 @@
  *          materials Material[M], textures, tangents/colors float[4V], decode tables float[512]);
  *          srgb_encode float2[4096]; prev_view_proj float[16], prev_positions float[3V].
  *          out: gbuffer uint[GB_PLANES][H·W].
- * Work-groups: 1-D, work-item i covers pixels [i·VEC, i·VEC + VEC); no barriers.
+ * Work-groups: 2-D, work-item (i, y) covers pixels [i·VEC, i·VEC + VEC) of row y (a run never
+ * crosses a row); a group is a GB_TILE_W × GB_TILE_H block of pixels (clrender/passes/gbuffer.py),
+ * so neighbouring rows' texture footprints are fetched while still in cache; no barriers.
  */
 #pragma OPENCL FP_CONTRACT OFF
 #include "structs.h"
@@ -35,18 +37,13 @@ kernel void gbuffer_resolve(global const float* vis_depth, global const int* vis
                             global uint* gbuffer)
 {
     const int npix = width * height;
-    const int pix0 = get_global_id(0) * VEC;
-    if (pix0 >= npix) return;
+    const int px0 = get_global_id(0) * VEC, row = get_global_id(1);
+    if (px0 >= width || row >= height) return;
+    const int pix0 = row * width + px0;
+    const int valid = min(VEC, width - px0);
 
-    /* Gather the winning prims (vector gathers over the Prim array seen as 32-bit words;
-     * background lanes read prim 0 and are masked out). */
-    intV px, py;
-    int cx = pix0 % width, cy = pix0 / width;
-    for (int l = 0; l < VEC; ++l) {
-        LANE_I(px, l) = cx; LANE_I(py, l) = cy;
-        if (++cx == width) { cx = 0; ++cy; }
-    }
-    const int valid = min(VEC, npix - pix0);
+    /* The winning prims of the run (background lanes read prim 0 and are masked out). */
+    const intV px = px0 + LANES, py = row;
     intV pidx;
     floatV depth;
     if (valid == VEC) {
@@ -73,7 +70,7 @@ kernel void gbuffer_resolve(global const float* vis_depth, global const int* vis
 #else                                   /* depth and id only (light-indexed): no surface */
         for (int i = 0; i < GB_PLANES; ++i) planes_fg[i] = 0;
         GB_PUT(planes_fg, LINEAR_DEPTH, as_uintV(depth / far));
-        GB_PUT(planes_fg, TRIANGLE_ID, as_uintV(GATHER_M(intV, prims, w, tri)));
+        GB_PUT(planes_fg, TRIANGLE_ID, as_uintV(GATHER_MS(intV, prims, w, tri)));
 #endif
         uintV ufg = as_uintV(fg);
 #if VEC == 1
@@ -81,13 +78,5 @@ kernel void gbuffer_resolve(global const float* vis_depth, global const int* vis
 #endif
         for (int i = 0; i < GB_PLANES; ++i) planes[i] = select(planes[i], planes_fg[i], ufg);
     }
-    for (int i = 0; i < GB_PLANES; ++i) {
-        if (!(GB_WRITE & (1 << i))) continue;
-        global uint* dst = gbuffer + i * npix + pix0;
-        if (pix0 + VEC <= npix) {
-            vstoreV(planes[i], 0, dst);
-        } else {
-            for (int l = 0; l < VEC && pix0 + l < npix; ++l) dst[l] = (uint)LANE_I(planes[i], l);
-        }
-    }
+    gbuffer_store(gbuffer, npix, pix0, valid, planes);
 }

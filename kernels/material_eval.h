@@ -20,7 +20,7 @@
 /* The lanes `on` whose material has a texture in slot `slot` (*tex: its index, per lane). */
 static inline intV slot_lanes(const SceneV* sc, intV mat, int slot, intV on, intV* tex)
 {
-    *tex = GATHER_M(intV, sc->materials, mat, slots[slot].texture);
+    *tex = GATHER_MS(intV, sc->materials, mat, slots[slot].texture);
     intV active = on & (*tex >= 0);
 #if VEC == 1
     active = active ? 1 : 0;
@@ -41,24 +41,24 @@ static rgbaV sample_slot(const SceneV* sc, const BaryV* b, intV mat, int slot, i
     rgbaV out = { 1.0f, 1.0f, 1.0f, 1.0f };
     if (!ANY(active)) return out;
     /* The slot's uv set at the pixel and its derivatives. */
-    const intV set = GATHER_M(intV, materials, mat, slots[slot].texcoord) * sc->n_vertices;
+    const intV set = GATHER_MS(intV, materials, mat, slots[slot].texcoord) * sc->n_vertices;
     const intV j0 = 2 * (set + b->i0), j1 = 2 * (set + b->i1), j2 = 2 * (set + b->i2);
     global const float* uvs = sc->uvs;
-    const floatV u0 = GATHER_F(uvs, j0), v0 = GATHER_F(uvs, j0 + 1);
-    const floatV u1 = GATHER_F(uvs, j1), v1 = GATHER_F(uvs, j1 + 1);
-    const floatV u2 = GATHER_F(uvs, j2), v2 = GATHER_F(uvs, j2 + 1);
+    const floatV u0 = GATHER_FS(uvs, j0), v0 = GATHER_FS(uvs, j0 + 1);
+    const floatV u1 = GATHER_FS(uvs, j1), v1 = GATHER_FS(uvs, j1 + 1);
+    const floatV u2 = GATHER_FS(uvs, j2), v2 = GATHER_FS(uvs, j2 + 1);
     const floatV u = b->c0 * u0 + b->c1 * u1 + b->c2 * u2, v = b->c0 * v0 + b->c1 * v1 + b->c2 * v2;
     const floatV dux = (b->c1x - b->c1) * (u1 - u0) + (b->c2x - b->c2) * (u2 - u0);
     const floatV dvx = (b->c1x - b->c1) * (v1 - v0) + (b->c2x - b->c2) * (v2 - v0);
     const floatV duy = (b->c1y - b->c1) * (u1 - u0) + (b->c2y - b->c2) * (u2 - u0);
     const floatV dvy = (b->c1y - b->c1) * (v1 - v0) + (b->c2y - b->c2) * (v2 - v0);
     /* KHR_texture_transform: uv' = M (u, v, 1); derivatives through the linear part. */
-    const floatV m0 = GATHER_M(floatV, materials, mat, slots[slot].uv[0]);
-    const floatV m1 = GATHER_M(floatV, materials, mat, slots[slot].uv[1]);
-    const floatV m2 = GATHER_M(floatV, materials, mat, slots[slot].uv[2]);
-    const floatV m3 = GATHER_M(floatV, materials, mat, slots[slot].uv[3]);
-    const floatV m4 = GATHER_M(floatV, materials, mat, slots[slot].uv[4]);
-    const floatV m5 = GATHER_M(floatV, materials, mat, slots[slot].uv[5]);
+    const floatV m0 = GATHER_MS(floatV, materials, mat, slots[slot].uv[0]);
+    const floatV m1 = GATHER_MS(floatV, materials, mat, slots[slot].uv[1]);
+    const floatV m2 = GATHER_MS(floatV, materials, mat, slots[slot].uv[2]);
+    const floatV m3 = GATHER_MS(floatV, materials, mat, slots[slot].uv[3]);
+    const floatV m4 = GATHER_MS(floatV, materials, mat, slots[slot].uv[4]);
+    const floatV m5 = GATHER_MS(floatV, materials, mat, slots[slot].uv[5]);
     const floatV tu = m0 * u + m1 * v + m2, tv = m3 * u + m4 * v + m5;
     FootprintV fp;
     const rgbaV t = trilinearV(sc->texels, sc->srgb_lut, sc->tex_infos, sc->tex_levels, max(tex, 0), active, tu, tv,
@@ -89,7 +89,7 @@ static rgbaV sample_slot_shared(const SceneV* sc, const BaryV* b, intV mat, intV
 #endif
     if (ANY(active & ~shares)) return sample_slot(sc, b, mat, slot, on, hit, 0);
     intV offset, w, h;
-    gather_level(sc->tex_levels, GATHER_M(intV, sc->tex_infos, max(tex, 0), first_level), &offset, &w, &h);
+    gather_level(sc->tex_levels, GATHER_MS(intV, sc->tex_infos, max(tex, 0), first_level), &offset, &w, &h);
     FootprintV fp = *base;
     fp.active = active;
     fp.active_b = active & base->active_b;
@@ -107,11 +107,11 @@ static void apply_normal_map(const SceneV* sc, const BaryV* b, intV mat, intV fl
     intV hit;
     const rgbaV t = sample_slot_shared(sc, b, mat, flags, SLOT_NORMAL, on, base, &hit);
     if (!ANY(hit)) return;
-    const floatV scale = GATHER_M(floatV, sc->materials, mat, normal_scale);
+    const floatV scale = GATHER_MS(floatV, sc->materials, mat, normal_scale);
     const floatV tx = (2.0f * t.r - 1.0f) * scale, ty = (2.0f * t.g - 1.0f) * scale, tz = 2.0f * t.b - 1.0f;
     global const float* tangents = sc->tangents;
     const intV k0 = 4 * b->i0, k1 = 4 * b->i1, k2 = 4 * b->i2;
-#define TAN(c) (b->c0 * GATHER_F(tangents, k0 + c) + b->c1 * GATHER_F(tangents, k1 + c) + b->c2 * GATHER_F(tangents, k2 + c))
+#define TAN(c) (b->c0 * GATHER_FS(tangents, k0 + c) + b->c1 * GATHER_FS(tangents, k1 + c) + b->c2 * GATHER_FS(tangents, k2 + c))
     vec3V T = { TAN(0), TAN(1), TAN(2) };
     const floatV hand = TAN(3);
 #undef TAN
@@ -137,14 +137,14 @@ static void evaluate_material(const SceneV* sc, const BaryV* b, intV fg, Surface
 {
     global const Material* materials = sc->materials;
     const intV mat = sf->mat;
-    floatV cr = GATHER_M(floatV, materials, mat, base_color[0]);
-    floatV cg = GATHER_M(floatV, materials, mat, base_color[1]);
-    floatV cb = GATHER_M(floatV, materials, mat, base_color[2]);
-    floatV ca = GATHER_M(floatV, materials, mat, base_color[3]);
+    floatV cr = GATHER_MS(floatV, materials, mat, base_color[0]);
+    floatV cg = GATHER_MS(floatV, materials, mat, base_color[1]);
+    floatV cb = GATHER_MS(floatV, materials, mat, base_color[2]);
+    floatV ca = GATHER_MS(floatV, materials, mat, base_color[3]);
     if (sc->has_colors) {                            /* COLOR_0 multiplies base colour and alpha */
         global const float* colors = sc->colors;
         const intV k0 = 4 * b->i0, k1 = 4 * b->i1, k2 = 4 * b->i2;
-#define COL(c) (b->c0 * GATHER_F(colors, k0 + c) + b->c1 * GATHER_F(colors, k1 + c) + b->c2 * GATHER_F(colors, k2 + c))
+#define COL(c) (b->c0 * GATHER_FS(colors, k0 + c) + b->c1 * GATHER_FS(colors, k1 + c) + b->c2 * GATHER_FS(colors, k2 + c))
         cr *= COL(0); cg *= COL(1); cb *= COL(2); ca *= COL(3);
 #undef COL
     }
@@ -160,9 +160,9 @@ static void evaluate_material(const SceneV* sc, const BaryV* b, intV fg, Surface
         cb = select(cb, cb * t.b, hit); ca = select(ca, ca * t.a, hit);
     }
 #endif
-    const intV flags = as_intV(GATHER_M(uintV, materials, mat, flags));
-    floatV spec_i = GATHER_M(floatV, materials, mat, spec_intensity);
-    floatV spec_p = GATHER_M(floatV, materials, mat, spec_power);
+    const intV flags = as_intV(GATHER_MS(uintV, materials, mat, flags));
+    floatV spec_i = GATHER_MS(floatV, materials, mat, spec_intensity);
+    floatV spec_p = GATHER_MS(floatV, materials, mat, spec_power);
     floatV ar = cr, ag = cg, ab = cb;                /* diffuse albedo */
 
     intV mr = fg & ((flags & (int)MAT_METALLIC_ROUGHNESS) != 0);
@@ -172,8 +172,8 @@ static void evaluate_material(const SceneV* sc, const BaryV* b, intV fg, Surface
     rgbaV t_mr;                                      /* kept: an ORM texture's R is the occlusion */
     intV hit_mr = 0;
     if (ANY(mr)) {
-        floatV m = GATHER_M(floatV, materials, mat, metallic);
-        floatV r = GATHER_M(floatV, materials, mat, roughness);
+        floatV m = GATHER_MS(floatV, materials, mat, metallic);
+        floatV r = GATHER_MS(floatV, materials, mat, roughness);
         t_mr = sample_slot_shared(sc, b, mat, flags, SLOT_MR, mr, &base, &hit_mr);
         m = select(m, m * t_mr.b, hit_mr);
         r = select(r, r * t_mr.g, hit_mr);
@@ -197,7 +197,7 @@ static void evaluate_material(const SceneV* sc, const BaryV* b, intV fg, Surface
 
     floatV occ = 1.0f;
 #if SURFACE_EXTRAS
-    const intV tex_occ = GATHER_M(intV, materials, mat, slots[SLOT_OCCLUSION].texture);
+    const intV tex_occ = GATHER_MS(intV, materials, mat, slots[SLOT_OCCLUSION].texture);
     intV want = fg & (tex_occ >= 0);
 #if VEC == 1
     want = want ? 1 : 0;
@@ -206,7 +206,7 @@ static void evaluate_material(const SceneV* sc, const BaryV* b, intV fg, Surface
         /* Occlusion in the R of the metallic-roughness texture (glTF's ORM packing, or the upload's
          * merge of equal-sized AO and MR images: scene_gpu.py), both through the base colour's
          * footprint: the texel is already fetched. */
-        intV same = hit_mr & (tex_occ == GATHER_M(intV, materials, mat, slots[SLOT_MR].texture))
+        intV same = hit_mr & (tex_occ == GATHER_MS(intV, materials, mat, slots[SLOT_MR].texture))
                     & ((flags & (int)(MAT_SHARES(SLOT_MR) | MAT_SHARES(SLOT_OCCLUSION)))
                        == (int)(MAT_SHARES(SLOT_MR) | MAT_SHARES(SLOT_OCCLUSION)));
 #if VEC == 1
@@ -219,13 +219,13 @@ static void evaluate_material(const SceneV* sc, const BaryV* b, intV fg, Surface
             t = t_mr;
             hit = want;
         }
-        const floatV strength = GATHER_M(floatV, materials, mat, occlusion_strength);
+        const floatV strength = GATHER_MS(floatV, materials, mat, occlusion_strength);
         occ = select(occ, 1.0f + strength * (t.r - 1.0f), hit);
     }
 #endif
-    floatV er = GATHER_M(floatV, materials, mat, emissive[0]);
-    floatV eg = GATHER_M(floatV, materials, mat, emissive[1]);
-    floatV eb = GATHER_M(floatV, materials, mat, emissive[2]);
+    floatV er = GATHER_MS(floatV, materials, mat, emissive[0]);
+    floatV eg = GATHER_MS(floatV, materials, mat, emissive[1]);
+    floatV eb = GATHER_MS(floatV, materials, mat, emissive[2]);
 #if SURFACE_EXTRAS
     {
         const rgbaV t = sample_slot_shared(sc, b, mat, flags, SLOT_EMISSIVE, fg, &base, &hit);

@@ -17,13 +17,20 @@
  *          the camera passes offset 0 and stride W; a shadow map writes its region of the shadow
  *          atlas), vis_prim int[W·H] (-1; may be null: shadow maps keep only the depth).
  * ORTHO=1: orthographic prims (setup.cl) whose inv_w are vertex depths: depth = Σ e_k·d_k / area.
- * Work-groups: (TILE/VEC, TILE); global size = (tiles_x·TILE/VEC, tiles_y·TILE).
+ * RROWS rows per work-item (CPUs: the tile's TILE rows; GPUs: 1): the work-item loads each prim
+ * once, tests its bounding box once and walks only the rows of its run that the box spans, so a
+ * small prim costs one test per tile column instead of one per run; the fragments each pixel
+ * compares, and their order, are the same for any RROWS.
+ * Work-groups: (TILE/VEC, TILE/RROWS); global size = (tiles_x·TILE/VEC, tiles_y·TILE/RROWS).
  */
 #pragma OPENCL FP_CONTRACT OFF
 #include "surface.h"
 
 #ifndef TILE
 #define TILE 16
+#endif
+#ifndef RROWS
+#define RROWS 1          /* rows per work-item, dividing TILE (clrender/passes/raster.py) */
 #endif
 #include "vec.h"
 #include "coverage.h"
@@ -43,7 +50,7 @@ static inline float screen_door_threshold(int px, int py, int material)
     return ((float)rank + 0.5f) * (1.0f / 16.0f);
 }
 
-kernel __attribute__((reqd_work_group_size(TILE / VEC, TILE, 1)))
+kernel __attribute__((reqd_work_group_size(TILE / VEC, TILE / RROWS, 1)))
 void raster_tiles(global const Prim* prims, global const int* tile_offsets, global const int* tile_counts,
                   global const int* tile_prims, int list_capacity, int tiles_x,
                   int width, int height, float far,
@@ -53,46 +60,60 @@ void raster_tiles(global const Prim* prims, global const int* tile_offsets, glob
                   global const float* colors, int n_vertices, int has_colors,
                   global float* vis_depth, int out_offset, int out_stride, global int* vis_prim)
 {
-    const int px0 = get_global_id(0) * VEC, py = get_global_id(1);
+    const int px0 = get_global_id(0) * VEC, py0 = get_global_id(1) * RROWS;
     const int tile = get_group_id(1) * tiles_x + get_group_id(0);
-    const int sx0 = px0 * 256 + 128, sy = py * 256 + 128;     /* first sample of the run */
+    const int sx0 = px0 * 256 + 128, sy0 = py0 * 256 + 128;     /* first sample of the first run */
+    const int sx_last = sx0 + (VEC - 1) * 256, sy_last = sy0 + (RROWS - 1) * 256;
     const Textures tx = { texels, srgb_lut, tex_infos, tex_levels, colors, n_vertices, has_colors };
 
-    floatV best_depth = (floatV)INFINITY;
-    intV best_tri = (intV)INT_MAX, best_prim = (intV)(-1);
+    floatV best_depth[RROWS];
+    intV best_tri[RROWS], best_prim[RROWS];
+    for (int r = 0; r < RROWS; ++r) {
+        best_depth[r] = (floatV)INFINITY; best_tri[r] = (intV)INT_MAX; best_prim[r] = (intV)(-1);
+    }
     const int start = tile_offsets[tile];
     const int end = min(start + tile_counts[tile], list_capacity);
     for (int i = start; i < end; ++i) {
         const int pi = tile_prims[i];
         const Prim p = prims[pi];
-        floatV depth;
-        const intV inside_i = prim_cover_run(&p, sx0, sy, &depth);
-        if (!ANY(inside_i)) continue;
-        intV wins = inside_i & (depth <= (floatV)far) &
-                    ((depth < best_depth) |
-                     ((depth == best_depth) & (((intV)p.tri < best_tri) |
-                                               (((intV)p.tri == best_tri) & ((intV)pi < best_prim)))));
-        if (!ANY(wins)) continue;
-        if (p.flags & PRIM_MASKED) {
-            const Material m = materials[p.material];
-            for (int l = 0; l < VEC; ++l) {
-                const float cutoff = (p.flags & PRIM_DITHER) ? screen_door_threshold(px0 + l, py, p.material)
-                                                             : m.alpha_cutoff;
-                if (LANE_I(wins, l) && px0 + l < width &&
-                    surface_base_color(&p, px0 + l, py, m, uvs, triangles, tx).w < cutoff)
-                    LANE_I(wins, l) = 0;
+        const int min_x = min(min(p.x[0], p.x[1]), p.x[2]), max_x = max(max(p.x[0], p.x[1]), p.x[2]);
+        const int min_y = min(min(p.y[0], p.y[1]), p.y[2]), max_y = max(max(p.y[0], p.y[1]), p.y[2]);
+        if (sx_last < min_x || sx0 > max_x || sy_last < min_y || sy0 > max_y) continue;
+        /* The rows r whose sample row sy0 + 256 r lies in [min_y, max_y]. */
+        const int r0 = max(min_y - sy0 + 255, 0) / 256, r1 = min((max_y - sy0) / 256, RROWS - 1);
+        for (int r = r0; r <= r1; ++r) {
+            const int py = py0 + r;
+            floatV depth;
+            const intV inside_i = prim_cover_run_in(&p, sx0, sy0 + 256 * r, min_x, max_x, min_y, max_y, &depth);
+            if (!ANY(inside_i)) continue;
+            intV wins = inside_i & (depth <= (floatV)far) &
+                        ((depth < best_depth[r]) |
+                         ((depth == best_depth[r]) & (((intV)p.tri < best_tri[r]) |
+                                                      (((intV)p.tri == best_tri[r]) & ((intV)pi < best_prim[r])))));
+            if (!ANY(wins)) continue;
+            if (p.flags & PRIM_MASKED) {
+                const Material m = materials[p.material];
+                for (int l = 0; l < VEC; ++l) {
+                    const float cutoff = (p.flags & PRIM_DITHER) ? screen_door_threshold(px0 + l, py, p.material)
+                                                                 : m.alpha_cutoff;
+                    if (LANE_I(wins, l) && px0 + l < width &&
+                        surface_base_color(&p, px0 + l, py, m, uvs, triangles, tx).w < cutoff)
+                        LANE_I(wins, l) = 0;
+                }
             }
+            best_depth[r] = select(best_depth[r], depth, wins);
+            best_tri[r] = select(best_tri[r], (intV)p.tri, wins);
+            best_prim[r] = select(best_prim[r], (intV)pi, wins);
         }
-        best_depth = select(best_depth, depth, wins);
-        best_tri = select(best_tri, (intV)p.tri, wins);
-        best_prim = select(best_prim, (intV)pi, wins);
     }
-    if (py >= height) return;
-    for (int l = 0; l < VEC; ++l) {
-        int px = px0 + l;
-        if (px < width) {
-            vis_depth[out_offset + py * out_stride + px] = LANE_F(best_depth, l);
-            if (vis_prim) vis_prim[py * width + px] = LANE_I(best_prim, l);
+    for (int r = 0; r < RROWS && py0 + r < height; ++r) {
+        const int py = py0 + r;
+        for (int l = 0; l < VEC; ++l) {
+            int px = px0 + l;
+            if (px < width) {
+                vis_depth[out_offset + py * out_stride + px] = LANE_F(best_depth[r], l);
+                if (vis_prim) vis_prim[py * width + px] = LANE_I(best_prim[r], l);
+            }
         }
     }
 }

@@ -17,6 +17,16 @@
  * Buffers: positions float[3V] world space; triangles int[3T]; tri_material int[T];
  *          materials Material[M]; view_proj float[16] row-major.
  *          out: prim_count int[T], status uchar[T] (STATUS_*), staged Prim[T], prims Prim[capacity].
+ * CHUNK_CULL=1 (clrender/passes/chunk_cull.py, kernels/chunk_cull.cl): the kernels run over
+ * slots instead of triangles: slot i is triangle chunk_list[i / CHUNK]·CHUNK + i % CHUNK, the
+ * visible chunks first (ascending, so prims keep triangle order) then the culled ones.
+ * setup_count runs one work-group of CHUNK per slot chunk: a visible chunk's group sets up its
+ * triangles and scans their counts in local memory (prim_local int[slots], chunk_prims
+ * int[chunks]); a culled chunk's group only writes chunk_prims 0 and, when `write_status`,
+ * the status setup would give each triangle (the chunk's verdict; a per-triangle near test
+ * where it straddles the near plane). The host's prefix sum then runs over chunk_prims only
+ * (chunks, not triangles), and setup_emit places slot i at chunk_offset[i / CHUNK] +
+ * prim_local[i]. prim_count, prim_local and staged are indexed by slot.
  * ORTHO=1 (shadow maps of the sun, clrender/passes/shadow.py; orthographic cameras,
  * docs/raster_contract.md §11): the matrix is orthographic
  * (clip.w = 1) and clip.z is the linear depth; the near plane is z >= near and Prim.inv_w
@@ -35,6 +45,13 @@
 #define CLIP_DEPTH(c) ((c).w)
 #endif
 
+#ifndef CHUNK_CULL
+#define CHUNK_CULL 0
+#endif
+#ifndef CHUNK
+#define CHUNK 128                /* as chunk_cull.cl's */
+#endif
+#define CHUNK_STRADDLES 7        /* chunk_cull.cl's verdict: culled, near plane crossed */
 #ifndef GUARD_PIXELS
 #define GUARD_PIXELS 262144.0f   /* 2^18: |snapped coordinate| < 2^27, edge functions < 2^56 */
 #endif
@@ -224,6 +241,29 @@ static int setup_triangle(int t, global const float* positions, global const int
     return emitted;
 }
 
+#if CHUNK_CULL
+/* The status setup_triangle gives triangle t of a culled chunk (its verdict v): every vertex
+ * is outside one side plane, so the trivial reject is taken; only where the chunk straddles
+ * the near plane does it take the triangle's own vertices to tell culled_near from offscreen. */
+static uchar culled_status(int t, int v, global const float* positions, global const int* triangles,
+                           global const int* tri_material, global const Material* materials,
+                           global const float* view_proj, float near, int select)
+{
+    if (select == SELECT_OPAQUE || select == SELECT_BLEND) {
+        const uint mat_flags = materials[tri_material[t]].flags;
+        if ((select == SELECT_OPAQUE) == ((mat_flags & MAT_BLEND) != 0)) return STATUS_TRANSPARENT;
+    }
+    if (v != CHUNK_STRADDLES) return (uchar)v;
+    for (int i = 0; i < 3; ++i) {
+        const int vi = triangles[3 * t + i];
+        const float4 c = transform(view_proj, positions[3 * vi], positions[3 * vi + 1], positions[3 * vi + 2]);
+        if (!(plane_distance(0, c, near, 0.0f, 0.0f) < 0.0f)) return STATUS_OFFSCREEN;
+    }
+    return STATUS_CULLED_NEAR;
+}
+#endif
+
+#if !CHUNK_CULL
 kernel void setup_count(global const float* positions, global const int* triangles,
                         global const int* tri_material, global const Material* materials,
                         global const float* view_proj, int n_tris, int width, int height, float near,
@@ -258,3 +298,69 @@ kernel void setup_emit(global const float* positions, global const int* triangle
     setup_triangle(t, positions, triangles, tri_material, materials, view_proj,
                    width, height, near, select, (int2)(sample_x, sample_y), prims + offset, room, &s);
 }
+
+#else
+/* Slot kernels: one work-group of CHUNK work-items per entry of chunk_list. */
+kernel __attribute__((reqd_work_group_size(CHUNK, 1, 1)))
+void setup_count(global const float* positions, global const int* triangles,
+                 global const int* tri_material, global const Material* materials,
+                 global const float* view_proj, int n_tris, int width, int height, float near,
+                 int select, int sample_x, int sample_y, global int* prim_count, global uchar* status,
+                 global Prim* staged, global const int* chunk_list, global const int* chunk_count,
+                 global const uchar* chunk_status, int write_status, global int* prim_local, global int* chunk_prims)
+{
+    local int sum[CHUNK];
+    const int i = get_global_id(0), lid = get_local_id(0), rank = get_group_id(0);
+    const int chunk = chunk_list[rank], t = chunk * CHUNK + lid;
+    if (rank >= chunk_count[0]) {          /* a culled chunk (the whole work-group) */
+        if (lid == 0) chunk_prims[rank] = 0;
+        if (write_status && t < n_tris)
+            status[t] = culled_status(t, chunk_status[chunk], positions, triangles, tri_material, materials,
+                                      view_proj, near, select);
+        return;
+    }
+    int count = 0;
+    if (t < n_tris) {                      /* past n_tris: the partial last chunk's spare slots */
+        uchar s;
+        count = setup_triangle(t, positions, triangles, tri_material, materials, view_proj,
+                               width, height, near, select, (int2)(sample_x, sample_y), staged + i, 1, &s);
+        status[t] = s;
+    }
+    sum[lid] = count;                      /* inclusive Hillis-Steele scan of the chunk's counts */
+    barrier(CLK_LOCAL_MEM_FENCE);
+    for (int d = 1; d < CHUNK; d <<= 1) {
+        const int x = (lid >= d) ? sum[lid - d] : 0;
+        barrier(CLK_LOCAL_MEM_FENCE);
+        sum[lid] += x;
+        barrier(CLK_LOCAL_MEM_FENCE);
+    }
+    prim_count[i] = count;
+    prim_local[i] = sum[lid] - count;
+    if (lid == CHUNK - 1) chunk_prims[rank] = sum[lid];
+}
+
+/* Slot i of a visible chunk: its prims go to chunk_offset[rank] + prim_local[i]. */
+kernel void setup_emit(global const float* positions, global const int* triangles,
+                       global const int* tri_material, global const Material* materials,
+                       global const float* view_proj, int n_tris, int width, int height, float near,
+                       int select, int sample_x, int sample_y, global const int* prim_local,
+                       global const int* prim_count,
+                       global const Prim* staged, int capacity, global Prim* prims,
+                       global const int* chunk_list, global const int* chunk_count, global const int* chunk_offset,
+                       int n_slots)
+{
+    const int i = get_global_id(0), rank = i / CHUNK;
+    if (i >= n_slots || rank >= chunk_count[0] || prim_count[i] == 0) return;
+    const int t = chunk_list[rank] * CHUNK + i % CHUNK;
+    const int offset = chunk_offset[rank] + prim_local[i];
+    const int room = capacity - offset;    /* overflow is detected on the host from the total */
+    if (room <= 0) return;
+    if (prim_count[i] == 1) {
+        prims[offset] = staged[i];
+        return;
+    }
+    uchar s;
+    setup_triangle(t, positions, triangles, tri_material, materials, view_proj,
+                   width, height, near, select, (int2)(sample_x, sample_y), prims + offset, room, &s);
+}
+#endif

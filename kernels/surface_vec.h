@@ -27,10 +27,10 @@ typedef struct { floatV x, y, z; } vec3V;
 static inline floatV dot3V(vec3V a, vec3V b) { return a.x * b.x + a.y * b.y + a.z * b.z; }
 
 /* Gathers a float3 attribute of vertex idx[l] for every lane. */
-static inline vec3V gather3(global const float* a, intV idx)
+static inline VINLINE vec3V gather3(global const float* a, intV idx)
 {
     intV i3 = idx * 3;
-    vec3V r = { GATHER_F(a, i3), GATHER_F(a, i3 + 1), GATHER_F(a, i3 + 2) };
+    vec3V r = { GATHER_FS(a, i3), GATHER_FS(a, i3 + 1), GATHER_FS(a, i3 + 2) };
     return r;
 }
 
@@ -104,11 +104,11 @@ static SurfaceV surface_at_offset(const SceneV* sc, intV w, intV fg, intV px, in
     global const Prim* prims = sc->prims;
     SurfaceV sf;
     BaryV bc;
-#define PRIM_I(m) GATHER_M(intV, prims, w, m)
-#define PRIM_F(m) GATHER_M(floatV, prims, w, m)
+#define PRIM_I(m) GATHER_MS(intV, prims, w, m)
+#define PRIM_F(m) GATHER_MS(floatV, prims, w, m)
     longV X0 = CONVERT_V(PRIM_I(x[0]), longV), X1 = CONVERT_V(PRIM_I(x[1]), longV), X2 = CONVERT_V(PRIM_I(x[2]), longV);
     longV Y0 = CONVERT_V(PRIM_I(y[0]), longV), Y1 = CONVERT_V(PRIM_I(y[1]), longV), Y2 = CONVERT_V(PRIM_I(y[2]), longV);
-    intV tri = PRIM_I(tri), flags = as_intV(GATHER_M(uintV, prims, w, flags)), mat = PRIM_I(material);
+    intV tri = PRIM_I(tri), flags = as_intV(GATHER_MS(uintV, prims, w, flags)), mat = PRIM_I(material);
 #if ORTHO
     const floatV iw0 = 1.0f, iw1 = 1.0f, iw2 = 1.0f;
 #else
@@ -142,7 +142,7 @@ static SurfaceV surface_at_offset(const SceneV* sc, intV w, intV fg, intV px, in
     bc.c0 = c0; bc.c1 = c1; bc.c2 = c2;
 
     intV t3 = tri * 3;
-    bc.i0 = GATHER_I(sc->triangles, t3); bc.i1 = GATHER_I(sc->triangles, t3 + 1); bc.i2 = GATHER_I(sc->triangles, t3 + 2);
+    bc.i0 = GATHER_IS(sc->triangles, t3); bc.i1 = GATHER_IS(sc->triangles, t3 + 1); bc.i2 = GATHER_IS(sc->triangles, t3 + 2);
 
     /* Normal: interpolated vertex normal, geometric where that degenerates; unit. */
     global const float* normals = sc->normals;

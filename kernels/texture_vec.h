@@ -14,6 +14,29 @@
 #include "structs.h"
 #include "vec.h"
 
+/* GATHER_MS/TS/FS/IS: GATHER_M/T/F/I (vec.h) for the scene's per-prim, per-vertex and
+ * per-material records, which a run's lanes mostly share (one triangle covers the run): where
+ * every lane's index is the same, one scalar load broadcast instead of VEC lane-by-lane loads
+ * and inserts (AVX2 CPUs have no fast gather). The same values either way. */
+#if VEC == 1
+#define GATHER_MS(T, p, i, m) GATHER_M(T, p, i, m)
+#define GATHER_TS(T, p, i) GATHER_T(T, p, i)
+#else
+#define UNIFORM_V(i) all((i) == (intV)(i).s0)
+#define GATHER_MS(T, p, i, m) (UNIFORM_V(i) ? (T)((p)[(i).s0].m) : GATHER_M(T, p, i, m))
+#define GATHER_TS(T, p, i) (UNIFORM_V(i) ? (T)((p)[(i).s0]) : GATHER_T(T, p, i))
+#endif
+#define GATHER_FS(p, i) GATHER_TS(floatV, p, i)
+
+/* VINLINE: always_inline on CPUs (VEC > 1) for the small helpers that take and return vectors,
+ * which the inliner otherwise leaves as calls passing every vector through the stack. */
+#if VEC > 1 && defined(__clang__)
+#define VINLINE __attribute__((always_inline))
+#else
+#define VINLINE
+#endif
+#define GATHER_IS(p, i) GATHER_TS(intV, p, i)
+
 /* Texture coordinate folded into one period: repeat [0,1), mirror/clamp [0,1]. */
 static inline floatV foldV(floatV u, intV mode)
 {
@@ -37,7 +60,7 @@ typedef struct { floatV r, g, b, a; } rgbaV;
 typedef struct { intV idx[4]; floatV ax, ay; } BilinearV;
 
 /* The footprint in per-lane levels (offset/width/height) of folded coordinates. */
-static inline BilinearV bilinear_at(intV offset, intV width, intV height, intV wrap_s, intV wrap_t, floatV u, floatV v)
+static inline VINLINE BilinearV bilinear_at(intV offset, intV width, intV height, intV wrap_s, intV wrap_t, floatV u, floatV v)
 {
     BilinearV q;
     floatV fx = foldV(u, wrap_s) * convert_floatV(width) - 0.5f;
@@ -55,7 +78,7 @@ static inline BilinearV bilinear_at(intV offset, intV width, intV height, intV w
  * texture with the same mip chain sizes). R, G, B bytes decode through lut[lut0 + byte] (sRGB or
  * linear table: structs.h LUT_*) or, with LINEAR, as byte / 255 (the LUT_LINEAR table's values,
  * computed); inactive lanes read texel 0. */
-static inline rgbaV bilinear_fetch(global const uint* texels, constant float* lut, intV lut0, int linear,
+static inline VINLINE rgbaV bilinear_fetch(global const uint* texels, constant float* lut, intV lut0, int linear,
                                    intV active, const BilinearV* q, intV delta)
 {
     rgbaV t[4];
@@ -85,9 +108,9 @@ static inline rgbaV bilinear_fetch(global const uint* texels, constant float* lu
 /* Per-lane mip level record `level` of texture `tex`. */
 static inline void gather_level(global const TexLevel* levels, intV level, intV* offset, intV* w, intV* h)
 {
-    *offset = GATHER_M(intV, levels, level, offset);
-    *w = GATHER_M(intV, levels, level, width);
-    *h = GATHER_M(intV, levels, level, height);
+    *offset = GATHER_MS(intV, levels, level, offset);
+    *w = GATHER_MS(intV, levels, level, width);
+    *h = GATHER_MS(intV, levels, level, height);
 }
 
 static inline floatV fast_log2V(floatV x)   /* exponent + linear mantissa, as texture units do */
@@ -112,9 +135,9 @@ static inline FootprintV footprint(global const TexInfo* tex_infos, global const
                                    intV active, floatV u, floatV v, floatV dux, floatV dvx, floatV duy, floatV dvy)
 {
     FootprintV fp;
-    intV first = GATHER_M(intV, tex_infos, tex, first_level), nlev = GATHER_M(intV, tex_infos, tex, levels);
-    intV wrap_s = GATHER_M(intV, tex_infos, tex, wrap_s), wrap_t = GATHER_M(intV, tex_infos, tex, wrap_t);
-    fp.lut0 = GATHER_M(intV, tex_infos, tex, lut);
+    intV first = GATHER_MS(intV, tex_infos, tex, first_level), nlev = GATHER_MS(intV, tex_infos, tex, levels);
+    intV wrap_s = GATHER_MS(intV, tex_infos, tex, wrap_s), wrap_t = GATHER_MS(intV, tex_infos, tex, wrap_t);
+    fp.lut0 = GATHER_MS(intV, tex_infos, tex, lut);
     intV w0, h0;
     gather_level(tex_levels, first, &fp.base, &w0, &h0);
     floatV fw = convert_floatV(w0), fh = convert_floatV(h0);
@@ -140,6 +163,7 @@ static inline rgbaV footprint_fetch(global const uint* texels, constant float* l
                                     const FootprintV* fp, intV delta)
 {
     rgbaV ta = bilinear_fetch(texels, lut, lut0, linear, fp->active, &fp->a, delta);
+    if (!ANY(fp->active_b)) return ta;      /* f = 0 on every active lane: ta + (tb - ta)·0 is ta */
     rgbaV tb = bilinear_fetch(texels, lut, lut0, linear, fp->active_b, &fp->b, delta);
     const floatV f = fp->f;
     rgbaV r = { ta.r + (tb.r - ta.r) * f, ta.g + (tb.g - ta.g) * f, ta.b + (tb.b - ta.b) * f,

@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 import clrender
-from clrender import Scene, Texture, memory, scene_gpu, structs
+from clrender import Scene, Texture, memory, scene_gpu, structs, texture_pool
 from clrender import gbuffer as layout
 from reference.geometry import uv_sphere
 from reference.raster import pixel_exact_camera
@@ -63,7 +63,7 @@ def test_device_bytes_reported_and_estimated(make_renderer):
     assert stats["device_bytes"] >= 48 * pixels
     assert by_owner["gbuffer"] == 4 * len(layout.PLANES) * pixels and by_owner["raster"] == 8 * pixels
     assert by_owner["shade"] >= 16 * pixels and by_owner["tonemap"] == 4 * pixels
-    tex_bytes = sum(level.nbytes for level in scene_gpu.mip_chain(scene.textures[0]))
+    tex_bytes = sum(level.nbytes for level in texture_pool.mip_chain(scene.textures[0]))
     assert by_owner["scene"] >= scene.positions.nbytes * 3 + tex_bytes + scene.lights.nbytes
     # The estimate that guards allocation covers every buffer of the passes it knows, within 2 %.
     known = sum(v for k, v in by_owner.items() if k in KNOWN_OWNERS)

@@ -20,7 +20,7 @@ from ..scene import TEXTURE_SLOTS, Material, Scene, SceneError, Texture, vertex_
 from ..tangents import generate_tangents
 
 __all__ = ["SceneError", "Piece", "fail", "transform_points", "transform_normals", "transform_tangents",
-           "world_piece", "assemble", "image_to_rgba", "decode_image", "load_images", "check_faces",
+           "world_piece", "assemble", "image_to_rgba", "decode_image", "load_images", "start_images", "check_faces",
            "trimesh_load", "flip_v", "shift_textures", "concat_vertex_attributes", "NO_TANGENT"]
 
 # The tangent of a vertex that has none (no TANGENT, no normal map): zero xyz, which the G-buffer
@@ -114,9 +114,12 @@ def world_piece(name: str, matrix, positions, faces, material: int, normals=None
 
 
 # -- assembling ----------------------------------------------------------------------------------
-def assemble(pieces: Sequence[Piece], materials: list[Material], textures: list[Texture],
-             source: str, camera: Optional[Camera] = None, settings: Optional[dict] = None) -> Scene:
+def assemble(pieces: Sequence[Piece], materials: list[Material],
+             textures: "list[Texture] | Callable[[], list[Texture]]", source: str,
+             camera: Optional[Camera] = None, settings: Optional[dict] = None) -> Scene:
     """Concatenate pieces (in order) into one Scene; normals are computed where a piece has none.
+    `textures`: a list, or a callable returning it, called last (images decoding in the background
+    while the pieces are put together: load_materials in gltf_materials.py).
 
     Per-vertex extras (docs/materials.md): `Scene.colors` is None when no piece has colours, else
     pieces without get white (1, 1, 1, 1). `Scene.extra_uvs` has K sets, K = the most any piece
@@ -192,7 +195,7 @@ def assemble(pieces: Sequence[Piece], materials: list[Material], textures: list[
         triangles=cat(triangles, (0, 3), np.int32),
         triangle_material=cat(tri_mat, (0,), np.int32),
         materials=list(materials),
-        textures=list(textures),
+        textures=list(textures() if callable(textures) else textures),
         mesh_names=names,
         triangle_mesh=cat(tri_mesh, (0,), np.int32),
         triangle_face=cat(tri_face, (0,), np.int32),
@@ -298,11 +301,27 @@ def decode_image(data, where: str) -> np.ndarray:
 
 def load_images(jobs: Sequence[Callable[[], np.ndarray]]) -> list[np.ndarray]:
     """Run image-decoding jobs in a thread pool (PIL releases the GIL while decoding)."""
+    return start_images(jobs)()
+
+
+def start_images(jobs: Sequence[Callable[[], np.ndarray]]) -> Callable[[], list[np.ndarray]]:
+    """Start the jobs in a thread pool and return `wait() -> images` (a job's error is raised
+    there): the caller works on (the glTF loader reads geometry) while the images decode."""
     if len(jobs) <= 1:
-        return [job() for job in jobs]
+        return lambda: [job() for job in jobs]
     workers = min(len(jobs), max(1, (os.cpu_count() or 2)), 16)
-    with ThreadPoolExecutor(max_workers=workers) as pool:
-        return list(pool.map(lambda job: job(), jobs))
+    pool = ThreadPoolExecutor(max_workers=workers)
+    futures = [pool.submit(job) for job in jobs]
+    pool.shutdown(wait=False)               # the workers exit when the jobs are done
+
+    def wait() -> list[np.ndarray]:
+        try:
+            return [f.result() for f in futures]
+        finally:
+            for f in futures:
+                f.cancel()                  # after an error: the jobs not started yet are dropped
+    wait.cancel = lambda: [f.cancel() for f in futures]
+    return wait
 
 
 # -- trimesh -----------------------------------------------------------------------------------------

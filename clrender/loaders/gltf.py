@@ -1,24 +1,19 @@
 """glTF 2.0 (.gltf / .glb) -> Scene.
 
-Geometry and the node hierarchy go through trimesh (`trimesh.load(..., force='scene')`); the
-scene graph is flattened to world space by walking `scene.graph.nodes_geometry` and applying each
-node's world matrix `scene.graph[node]` to positions and (inverse-transpose, renormalized) normals.
-Everything trimesh gets wrong or loses is read from the glTF JSON and buffers directly:
+Geometry and the node hierarchy are read from the accessors and the node JSON
+(`gltf_geometry.NumpyGeometry`, which repeats trimesh 5.2's glTF loader and scene graph bit for
+bit: CLRENDER_GLTF_TRIMESH=1 still loads through trimesh, the reference the tests compare with);
+each mesh node's world matrix is applied to positions and (inverse-transpose, renormalized) normals.
+Also:
 
 * the file is read and validated first by `gltf_document` (JSON, GLB chunks, buffers, buffer
   views, accessor ranges, indices into every array), so bad input is a `SceneError` naming the
-  file, never a trimesh traceback;
-* trimesh is handed a copy of the JSON whose nodes are named ``n<node>`` and meshes ``m<mesh>``
-  (so every trimesh geometry maps back to its glTF node / mesh / primitive), with camera
-  references removed (trimesh 5.2 drops a camera node from its graph, mesh and children included)
-  and with materials skipped (we read them from the JSON);
+  file, never a traceback;
 * triangle order is the glTF node traversal order (scene roots in order, depth-first, children in
-  order; trimesh's own `nodes_geometry` order is reversed), then primitives in order, then faces in
-  file order;
-* TEXCOORD_0 is read from its accessor (trimesh flips v in float32, which is not invertible
-  exactly, and drops uvs of primitives without a material), so `Scene.uvs` equals the file data;
-* NORMAL comes from trimesh's cache of the file normals (process=False: no merging, no
-  recomputation); primitives without NORMAL get area-weighted normals in world space;
+  order), then primitives in order, then faces in file order;
+* TEXCOORD_0 is read from its accessor, so `Scene.uvs` equals the file data;
+* NORMAL is the file's (no merging, no recomputation); primitives without NORMAL get
+  area-weighted normals in world space;
 * materials (docs/materials.md): every glTF 2.0 property, KHR_materials_emissive_strength and
   KHR_materials_unlit into `Material`; every textureInfo's texCoord and KHR_texture_transform
   (whose texCoord overrides) into `<slot>_uv`. One `Texture` per (image, wrapS, wrapT, sRGB): base
@@ -59,9 +54,6 @@ Everything trimesh gets wrong or loses is read from the glTF JSON and buffers di
 """
 from __future__ import annotations
 
-import io
-import json
-import re
 import warnings
 from pathlib import Path
 from typing import Optional
@@ -71,9 +63,10 @@ import numpy as np
 from .. import animation as gltf_animation
 from ..camera import Camera
 from ..scene import Material, Scene, SceneError
-from .common import Piece, assemble, check_faces, trimesh_load, trimesh_vertex_normals, world_piece
+from .common import Piece, assemble, check_faces, world_piece
 from .gltf_document import (MODE_FAN, MODE_STRIP, MODE_TRIANGLES, SUPPORTED_EXTENSIONS, Document, attribute_sets,
                             extensions_in_use, load_document, node_light, punctual_lights)
+from .gltf_geometry import geometry_for
 from .gltf_materials import load_materials
 from .lights import (AUTO_RADIUS_KEY, DIRECTIONAL_KEY, auto_radius, scene_diagonal, sun_from_directional,
                      warn_directional)
@@ -104,53 +97,8 @@ def _traversal(doc: Document) -> list[int]:
     return order
 
 
-def _triangle_primitives(mesh: dict) -> list[tuple[int, dict]]:
-    """(index, primitive) of the primitives that are rendered: TRIANGLES and TRIANGLE_STRIP."""
-    return [(p, prim) for p, prim in enumerate(mesh["primitives"])
-            if prim.get("mode", MODE_TRIANGLES) in (MODE_TRIANGLES, MODE_STRIP)]
-
-
-def _trimesh_scene(doc: Document):
-    """trimesh's Scene for a renamed, triangles-only, material-less, camera-less copy of the document."""
-    j = doc.json
-    meshes = doc.list("meshes")
-    header = {k: j[k] for k in ("asset", "scene", "scenes", "accessors", "bufferViews") if k in j}
-    header["nodes"] = []
-    for i, node in enumerate(doc.list("nodes")):
-        keep = {k: v for k, v in node.items() if k in ("children", "matrix", "translation", "rotation", "scale")}
-        # a node whose mesh has no triangle primitive would be left out of trimesh's graph,
-        # children included: give it no mesh instead
-        if "mesh" in node and _triangle_primitives(meshes[node["mesh"]]):
-            keep["mesh"] = node["mesh"]
-        header["nodes"].append(dict(keep, name=f"n{i}"))
-    header["meshes"] = [{"name": f"m{i}", "primitives": [
-        {"attributes": {a: prim["attributes"][a] for a in ("POSITION", "NORMAL") if a in prim["attributes"]},
-         **{k: prim[k] for k in ("indices", "mode") if k in prim}}
-        for _, prim in _triangle_primitives(mesh)]} for i, mesh in enumerate(meshes)]
-    header["buffers"] = [{"uri": f"buffer{k}.bin", "byteLength": len(b)} for k, b in enumerate(doc.buffers)]
-    resolver = {f"buffer{k}.bin": b for k, b in enumerate(doc.buffers)}
-    stream = io.BytesIO(json.dumps(header).encode("utf-8"))
-    return trimesh_load(stream, file_type="gltf", resolver=resolver, skip_materials=True,
-                        process=False, where=doc.path)
-
-
-def _primitive_names(doc: Document) -> dict[tuple[int, int], str]:
-    """(mesh, primitive) -> trimesh geometry name, computed exactly as trimesh names them."""
-    from trimesh.util import unique_name
-
-    names: dict[str, None] = {}
-    counts: dict = {}
-    out = {}
-    for i, mesh in enumerate(doc.list("meshes")):
-        for p, _ in _triangle_primitives(mesh):
-            name = unique_name(f"m{i}", names, counts=counts)
-            names[name] = None
-            out[(i, p)] = name
-    return out
-
-
 # -- camera ------------------------------------------------------------------------------------------------
-def _camera(doc: Document, order: list[int], tm_scene, scene: Scene) -> Optional[Camera]:
+def _camera(doc: Document, order: list[int], geometry, scene: Scene) -> Optional[Camera]:
     nodes = doc.list("nodes")
     for n in order:
         if "camera" not in nodes[n]:
@@ -161,7 +109,7 @@ def _camera(doc: Document, order: list[int], tm_scene, scene: Scene) -> Optional
             continue  # not a camera this loader knows
         persp = cam[kind]
         try:
-            matrix = np.asarray(tm_scene.graph[f"n{n}"][0], np.float64)
+            matrix = geometry.node_matrix(n)
             eye = matrix[:3, 3]
             forward = -matrix[:3, 2]
             up = matrix[:3, 1]
@@ -321,34 +269,29 @@ def _warn_features(doc: Document, features: dict[str, str]) -> None:
         warnings.warn(f"{doc.path}: glTF {feature} not supported: {instead}", stacklevel=4)
 
 
-def _needs_own_reader(accessor: dict) -> bool:
-    """trimesh ignores sparse data and the `normalized` flag: read those accessors ourselves."""
-    return "sparse" in accessor or accessor.get("componentType") != 5126
-
-
 # -- entry point -------------------------------------------------------------------------------------------
 def load_gltf(path) -> Scene:
     path = Path(path)
     doc = load_document(path)
     order = _traversal(doc)
     features = _unsupported_features(doc)      # {feature: what happens instead}, warned once each at the end
-    materials, textures = load_materials(doc, features)
+    materials, textures = load_materials(doc, features)     # the images decode from here on
+    try:
+        scene = _geometry(doc, path, order, features, materials, textures)
+    except BaseException:
+        textures.cancel()
+        raise
+    _lights(doc, order, scene)
+    _warn_features(doc, features)
+    return scene
+
+
+def _geometry(doc: Document, path: Path, order: list[int], features: dict, materials: list, textures) -> Scene:
+    """The Scene: mesh nodes' primitives, camera and animation (textures() waited for last)."""
     animation = gltf_animation.from_document(doc, order, features)   # None: static
 
-    tm_scene = _trimesh_scene(doc)
-    prim_names = _primitive_names(doc)
-    parents = tm_scene.graph.transforms.parents
-    node_re = re.compile(r"n(\d+)$")
-    instances: dict[tuple[int, str], str] = {}
-    for gnode in tm_scene.graph.nodes_geometry:
-        match = node_re.match(gnode) or node_re.match(str(parents.get(gnode, "")))
-        if match is None:
-            raise doc.err(f"internal: cannot map trimesh node {gnode!r} back to a glTF node")
-        _, gname = tm_scene.graph[gnode]
-        instances[(int(match.group(1)), gname)] = gnode
-
+    geometry = geometry_for(doc, order)
     nodes_json, meshes_json = doc.list("nodes"), doc.list("meshes")
-    accessors = doc.list("accessors")
     default_material = None
     pieces: list[Piece] = []
     for n in order:
@@ -364,31 +307,14 @@ def load_gltf(path) -> Scene:
             mode = prim.get("mode", MODE_TRIANGLES)
             what = f"mesh {mi} ({mesh_name!r}) primitive {p}"
             if mode not in (MODE_TRIANGLES, MODE_STRIP):
-                if mode == MODE_FAN:  # trimesh does not read fans
+                if mode == MODE_FAN:
                     features.setdefault("TRIANGLE_FAN primitives", f"not loaded (first: {what})")
                 else:
                     features.setdefault("point and line primitives", f"not drawn (first: {what})")
                 continue
-            gnode = instances.get((n, prim_names[(mi, p)]))
-            if gnode is None:
-                raise doc.err(f"internal: trimesh lost node {n} {what}")
-            matrix, gname = tm_scene.graph[gnode]
-            geom = tm_scene.geometry[gname]
             attrs = prim["attributes"]
-            positions = np.asarray(geom.vertices, np.float64)
-            faces = np.asarray(geom.faces, np.int64).reshape(-1, 3)
-            nv = accessors[attrs["POSITION"]]["count"]
-            if len(positions) != nv:
-                raise doc.err(f"internal: trimesh returned {len(positions)} vertices for {what}, "
-                              f"the POSITION accessor has {nv}")
-            if _needs_own_reader(accessors[attrs["POSITION"]]):
-                positions = doc.accessor(attrs["POSITION"]).astype(np.float64)
-            check_faces(faces, nv, path, what)
-            normals = None
-            if "NORMAL" in attrs:
-                normals = trimesh_vertex_normals(geom)
-                if normals is None or _needs_own_reader(accessors[attrs["NORMAL"]]):
-                    normals = doc.accessor(attrs["NORMAL"]).astype(np.float64)
+            matrix, positions, faces, normals = geometry.primitive(n, mi, p, prim)
+            check_faces(faces, len(positions), path, what)
             uvs = doc.accessor(attrs["TEXCOORD_0"]) if "TEXCOORD_0" in attrs else None
             sets = [k for k in attribute_sets(attrs, "TEXCOORD") if k > 0]
             extra_uvs = [doc.accessor(attrs[f"TEXCOORD_{k}"]) if f"TEXCOORD_{k}" in attrs else None
@@ -414,10 +340,8 @@ def load_gltf(path) -> Scene:
                                       extra_uvs, tangent_uv))
 
     scene = assemble(pieces, materials, textures, str(path))
-    scene.camera = _camera(doc, order, tm_scene, scene)
+    scene.camera = _camera(doc, order, geometry, scene)
     if animation is not None:
         gltf_animation.bind(animation, doc, order, scene)
         scene.animation = animation
-    _lights(doc, order, scene)
-    _warn_features(doc, features)
     return scene

@@ -2,7 +2,7 @@
 
 Every core material property, KHR_materials_emissive_strength, KHR_materials_unlit, and on every
 textureInfo its texCoord and KHR_texture_transform (`UVTransform`). Images are decoded in
-parallel (`load_images`); a texture is shared by (image, wrap modes, colour space): base colour
+parallel (`start_images`), while the loader reads the geometry; a texture is shared by (image, wrap modes, colour space): base colour
 and emissive images are sRGB, the others linear.
 """
 from __future__ import annotations
@@ -11,7 +11,7 @@ import warnings
 from urllib.parse import unquote
 
 from ..scene import Material, SceneError, Texture, UVTransform
-from .common import decode_image, load_images
+from .common import decode_image, start_images
 from .gltf_document import (TEXTURE_INFOS, WRAP_MODES, Document, data_uri, material_textures, texcoord_of,
                             texture_source)
 
@@ -35,10 +35,12 @@ def uv_transform(doc: Document, what: str, info: dict) -> UVTransform:
         raise doc.err(f"{what}: {exc}") from None
 
 
-def load_materials(doc: Document, features: dict) -> tuple[list[Material], list[Texture]]:
-    """Every glTF material as a `Material` (docs/materials.md) and the textures they use: one
-    `Texture` per (image, wrapS, wrapT, sRGB), so an image read both as colour (base colour,
-    emissive: sRGB) and as data (metallic-roughness, normal, occlusion: linear) becomes two."""
+def load_materials(doc: Document, features: dict):
+    """Every glTF material as a `Material` (docs/materials.md), and `textures() -> [Texture]`: the
+    textures they use, one per (image, wrapS, wrapT, sRGB), so an image read both as colour (base
+    colour, emissive: sRGB) and as data (metallic-roughness, normal, occlusion: linear) becomes two.
+    The images decode in a thread pool from this call on; textures() waits for them (and raises a
+    decoding error); textures.cancel() drops the ones not started."""
     images = doc.list("images")
     textures_json = doc.list("textures")
     samplers = doc.list("samplers")
@@ -97,8 +99,11 @@ def load_materials(doc: Document, features: dict) -> tuple[list[Material], list[
                 alpha_cutoff=float(mat.get("alphaCutoff", 0.5)), **kw))
         except (SceneError, TypeError, ValueError) as exc:
             raise doc.err(f"{where}: {exc}") from None
-    pixels = load_images(jobs)
-    textures = [Texture(n, rgba, ws, wt, srgb=srgb) for n, rgba, (_, ws, wt, srgb) in zip(names, pixels, keys)]
+    wait = start_images(jobs)
+
+    def textures() -> list[Texture]:
+        return [Texture(n, rgba, ws, wt, srgb=srgb) for n, rgba, (_, ws, wt, srgb) in zip(names, wait(), keys)]
+    textures.cancel = wait.cancel if hasattr(wait, "cancel") else (lambda: None)
     return materials, textures
 
 

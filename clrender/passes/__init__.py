@@ -2,6 +2,7 @@
 from .abuffer import AbufferPass
 from .base import RenderPass, Resources
 from .binning import BinningPass
+from .chunk_cull import ChunkCullPass
 from .composite import CompositePass
 from .fragments import FragmentsPass
 from .gbuffer import GBufferPass
@@ -16,6 +17,6 @@ from .ssao import SsaoPass
 from .ssao_blur import SsaoBlurPass
 from .tonemap import TonemapPass
 
-__all__ = ["RenderPass", "Resources", "SetupPass", "BinningPass", "RasterPass", "GBufferPass",
+__all__ = ["RenderPass", "Resources", "ChunkCullPass", "SetupPass", "BinningPass", "RasterPass", "GBufferPass",
            "LightCullPass", "ParticlesPass", "SsaoPass", "SsaoBlurPass", "ShadowPass", "ShadePass",
            "TonemapPass", "FragmentsPass", "AbufferPass", "PeelPass", "CompositePass"]

@@ -9,7 +9,10 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
+import pyopencl as cl
 import pyopencl.array as cla
+
+from .. import capabilities
 
 
 @dataclass
@@ -103,11 +106,9 @@ class _Timed:
         self.owner, self.stage = owner, stage
 
     def __enter__(self):
-        import pyopencl as cl
         self.start = cl.enqueue_marker(self.owner.queue)
 
     def __exit__(self, *exc):
-        import pyopencl as cl
         events = self.owner.__dict__.setdefault("_stage_events", [])
         events.append((self.stage, self.start, cl.enqueue_marker(self.owner.queue)))
 
@@ -120,11 +121,20 @@ def view_defines(ortho: bool) -> dict:
 
 
 def zeros(queue, n, dtype) -> cla.Array:
-    # Filled by a kernel: Oclgrind does not mark clEnqueueFillBuffer (cla.zeros) output as
-    # initialized, and every later read would be reported as uninitialized.
     a = cla.empty(queue, max(int(n), 1), dtype)
-    a.fill(0, queue=queue)
+    fill_zero(a, queue)
     return a
+
+
+def fill_zero(a: cla.Array, queue=None) -> None:
+    """Enqueue a = 0: clEnqueueFillBuffer, which needs no kernel (pyopencl's fill kernels cost a
+    fresh process ~40 ms to build per dtype); on Oclgrind, whose checker does not count
+    FillBuffer's output as written, pyopencl's fill kernel."""
+    queue = queue or a.queue
+    if capabilities.fill_buffer_marks_initialized(queue.device):
+        cl.enqueue_fill_buffer(queue, a.base_data, np.uint8(0), a.offset, a.nbytes)
+    else:
+        a.fill(0, queue=queue)
 
 
 def empty(queue, n, dtype) -> cla.Array:

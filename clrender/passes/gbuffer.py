@@ -12,6 +12,11 @@ from .. import gbuffer as layout
 from .base import SCENE_INPUTS, RenderPass, empty, round_up, scene_args, view_defines
 
 
+# Pixels per work-group (GB_TILE_W × GB_TILE_H blocks, kernels/gbuffer.cl): consecutive rows of a
+# block sample the same texels while they are still in cache, unlike whole-row groups.
+GB_TILE_W, GB_TILE_H = 32, 8
+
+
 class GBufferPass(RenderPass):
     name = "gbuffer"
     inputs = ("vis_depth", "vis_prim", "prims") + SCENE_INPUTS + ("srgb_encode", "prev_view_proj")
@@ -41,7 +46,8 @@ class GBufferPass(RenderPass):
         has_prev = int(res["has_prev"] or prev_positions is not None)
         if prev_positions is None:
             prev_positions = res["positions"]
-        self.kernel(self.queue, (round_up(-(-w * h // self.vec), 64),), (64,),
+        tw = max(GB_TILE_W // self.vec, 1)
+        self.kernel(self.queue, (round_up(-(-w // self.vec), tw), round_up(h, GB_TILE_H)), (tw, GB_TILE_H),
                     res["vis_depth"].data, res["vis_prim"].data, np.int32(w), np.int32(h), np.float32(res["far"]),
                     *scene_args(res, res["prims"]), res["srgb_encode"].data,
                     res["prev_view_proj"].data, prev_positions.data, np.int32(has_prev), self.gbuffer.data)

@@ -8,7 +8,7 @@ import numpy as np
 
 from .. import capabilities
 from .. import gbuffer as layout
-from .base import Overflow, RenderPass, empty, view_defines, zeros
+from .base import Overflow, RenderPass, empty, fill_zero, view_defines, zeros
 
 INITIAL_WORDS = 1        # 32 lights per tile list before the first growth
 
@@ -47,7 +47,7 @@ class LightStencilPass(RenderPass):
     def run(self, res):
         t = self.tile
         n_tiles = self.tiles_x * self.tiles_y
-        self.needed.fill(0, queue=self.queue)
+        fill_zero(self.needed, self.queue)
         self.words_kernel(self.queue, (-(-n_tiles // 64) * 64,), None, res["tile_light_counts"].data,
                           np.int32(n_tiles), self.needed.data)
         self.kernel(self.queue, (self.tiles_x * t // self.vec, self.tiles_y * t), (t // self.vec, t),

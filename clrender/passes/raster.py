@@ -24,8 +24,18 @@ class RasterPass(RenderPass):
         if depth_only:
             self.inputs = self.inputs + ("raster_target", "raster_offset", "raster_stride")
             self.outputs = ()
-        defines = {"TILE": self.tile, "VEC": self.vec, **({"ORTHO": 1} if ortho else {})}
-        self.kernel = device.kernel("raster.cl", "raster_tiles", defines)
+        # Rows per work-item (raster.cl RROWS): the whole tile column on CPUs, where a work-item's
+        # prim loads and bounding-box tests are the cost; a pixel per work-item on GPUs.
+        self.ortho = ortho
+        self.set_rows(self.tile if self.vec > 1 else 1)
+
+    def set_rows(self, rows: int):
+        """Rows per work-item (a divisor of the tile size); the result is the same for any."""
+        if self.tile % rows:
+            raise ValueError(f"rows per work-item {rows} must divide the tile size {self.tile}")
+        self.rows = rows
+        defines = {"TILE": self.tile, "VEC": self.vec, "RROWS": rows, **({"ORTHO": 1} if self.ortho else {})}
+        self.kernel = self.device.kernel("raster.cl", "raster_tiles", defines)
 
     def allocate(self, width, height):
         if self.depth_only:
@@ -39,12 +49,12 @@ class RasterPass(RenderPass):
 
     def run(self, res):
         t = self.tile
-        gsize = (res["tiles_x"] * t // self.vec, res["tiles_y"] * t)
+        gsize = (res["tiles_x"] * t // self.vec, res["tiles_y"] * t // self.rows)
         if self.depth_only:
             target = (res["raster_target"].data, np.int32(res["raster_offset"]), np.int32(res["raster_stride"]), None)
         else:
             target = (self.vis_depth.data, np.int32(0), np.int32(res["width"]), self.vis_prim.data)
-        self.kernel(self.queue, gsize, (t // self.vec, t),
+        self.kernel(self.queue, gsize, (t // self.vec, t // self.rows),
                     res["prims"].data, res["tile_offsets"].data, res["tile_counts"].data,
                     res["tile_prims"].data, np.int32(res["tile_list_capacity"]), np.int32(res["tiles_x"]),
                     np.int32(res["width"]), np.int32(res["height"]), np.float32(res["far"]),

@@ -1,10 +1,17 @@
-"""Setup pass (kernels/setup.cl): transform, clip, cull and snap triangles into prims."""
+"""Setup pass (kernels/setup.cl): transform, clip, cull and snap triangles into prims.
+
+With RenderConfig.chunk_cull (default) the pass first runs its own ChunkCullPass
+(clrender/passes/chunk_cull.py) and setup.cl is built with CHUNK_CULL=1: count, prefix sum and
+emit run over chunk slots, so only the triangles of chunks the view can see are read and set
+up; the cull's time is part of this pass's. The prims (and their order) are the same."""
 from __future__ import annotations
 
 import numpy as np
+import pyopencl as cl
 
 from .. import structs
-from .base import Overflow, RenderPass, empty, round_up, scan_for, zeros
+from .base import Overflow, RenderPass, empty, fill_zero, round_up, scan_for, zeros
+from .chunk_cull import CHUNK, ChunkCullPass, chunk_defines, n_chunks
 
 
 SELECT = {"all": 0, "opaque": 1, "blend": 2, "dither": 3}
@@ -15,31 +22,50 @@ class SetupPass(RenderPass):
     inputs = ("positions", "triangles", "tri_material", "materials", "view_proj", "n_tris", "near")
     outputs = ("prims", "prim_total", "prim_capacity", "tri_status")
 
-    def __init__(self, device, config, ortho: bool = False, select: str = "all", sample: tuple = (0, 0)):
+    def __init__(self, device, config, ortho: bool = False, select: str = "all", sample: tuple = (0, 0),
+                 status: bool = True):
         """ortho: the view is orthographic (a sun shadow cascade); see setup.cl ORTHO.
         select: which triangles become prims (setup.cl SELECT_*): "all", "opaque" (BLEND
         triangles are left to the transparency pass), "blend" (only those), "dither" (all;
         BLEND prims get the screen-door flag). sample: (dx, dy) in 1/256 pixel, the sub-sample
-        the raster covers instead of the pixel centre (docs/raster_contract.md §10)."""
+        the raster covers instead of the pixel centre (docs/raster_contract.md §10).
+        status=False (shadow maps, whose statuses nothing reads): with the chunk cull, the
+        triangles of culled chunks keep a stale tri_status and triangle_stats() refuses."""
         super().__init__(device, config)
         self.select = np.int32(SELECT[select])
         self.sample = tuple(np.int32(v) for v in sample)
+        self.write_status = bool(status)
+        self.cull = ChunkCullPass(device, config, ortho=ortho) if getattr(config, "chunk_cull", False) else None
         defines = {"ORTHO": 1} if ortho else None
+        if self.cull is not None:
+            defines = {**chunk_defines(ortho), "CHUNK_CULL": 1}
         self.count_kernel = device.kernel("setup.cl", "setup_count", defines)
         self.emit_kernel = device.kernel("setup.cl", "setup_emit", defines)
+        if self.cull is not None and self.count_kernel.get_work_group_info(
+                cl.kernel_work_group_info.WORK_GROUP_SIZE, device.cl_device) < CHUNK:
+            raise RuntimeError(f"setup.cl's chunk cull needs work-groups of {CHUNK} (one chunk) and "
+                               f"{device.name} allows fewer for setup_count: set RenderConfig chunk_cull=False")
         self.scan = scan_for(device)
         self.n_tris = -1
+        self.slots = 0
         self.capacity = 0
         self.prim_total = zeros(self.queue, 1, np.int32)
 
     def prepare_scene(self, scene_res):
         n = scene_res["n_tris"]
+        if self.cull is not None:
+            self.cull.prepare_scene(scene_res)
         if n != self.n_tris:
             self.n_tris = n
-            self.prim_count = zeros(self.queue, n, np.int32)
-            self.prim_offset = zeros(self.queue, n, np.int32)
+            # per triangle, or per chunk slot with the cull (a partial last chunk's slots too)
+            self.slots = n_chunks(n) * CHUNK if self.cull is not None else n
+            self.prim_count = zeros(self.queue, self.slots, np.int32)
+            self.prim_offset = zeros(self.queue, self.slots, np.int32)     # with the cull: offset in its chunk
+            if self.cull is not None:
+                self.chunk_prims = zeros(self.queue, n_chunks(n), np.int32)
+                self.chunk_offset = zeros(self.queue, n_chunks(n), np.int32)
             self.status = zeros(self.queue, n, np.uint8)
-            self.staged = empty(self.queue, n, structs.prim_dtype)   # first prim of each triangle
+            self.staged = empty(self.queue, self.slots, structs.prim_dtype)   # first prim of each triangle (slot)
             # Most triangles yield at most one prim; clipping can yield more (grown on demand).
             self._allocate_prims(max(1024, n + n // 8))
 
@@ -59,18 +85,34 @@ class SetupPass(RenderPass):
     def run(self, res):
         n = self.n_tris
         if n == 0:
-            self.prim_total.fill(0)
+            fill_zero(self.prim_total, self.queue)
             return
         w, h = res["width"], res["height"]
         common = (res["positions"].data, res["triangles"].data, res["tri_material"].data,
                   res["materials"].data, res["view_proj"].data, np.int32(n), np.int32(w), np.int32(h),
                   np.float32(res["near"]), self.select, *self.sample)
+        if self.cull is not None:
+            self._run_slots(res, common)
+            return
         gsize = (round_up(n, 64),)
         self.count_kernel(self.queue, gsize, None, *common, self.prim_count.data, self.status.data,
                           self.staged.data)
         self.scan(self.prim_count, self.prim_offset, self.prim_total, size=n, queue=self.queue)
         self.emit_kernel(self.queue, gsize, None, *common, self.prim_offset.data, self.prim_count.data,
                          self.staged.data, np.int32(self.capacity), self.prims.data)
+
+    def _run_slots(self, res, common):
+        """With the chunk cull (setup.cl CHUNK_CULL): the cull, then count and emit over chunk
+        slots, the prefix sum over the chunks' prim totals."""
+        c = self.cull
+        c.run(res)
+        self.count_kernel(self.queue, (self.slots,), (CHUNK,), *common, self.prim_count.data, self.status.data,
+                          self.staged.data, c.chunk_list.data, c.chunk_count.data, c.chunk_status.data,
+                          np.int32(self.write_status), self.prim_offset.data, self.chunk_prims.data)
+        self.scan(self.chunk_prims, self.chunk_offset, self.prim_total, size=c.n_chunks, queue=self.queue)
+        self.emit_kernel(self.queue, (round_up(self.slots, 64),), None, *common, self.prim_offset.data,
+                         self.prim_count.data, self.staged.data, np.int32(self.capacity), self.prims.data,
+                         c.chunk_list.data, c.chunk_count.data, self.chunk_offset.data, np.int32(self.slots))
 
     def overflows(self):
         return [Overflow("prims", self.prim_total, self.capacity)]
@@ -79,9 +121,17 @@ class SetupPass(RenderPass):
         self._allocate_prims(round_up(needed + needed // 4, 1024))
 
     def triangle_stats(self) -> dict:
-        """Per-reason triangle counts from the status bytes (reads back T bytes)."""
+        """Per-reason triangle counts from the status bytes (reads back T bytes). Triangles of
+        culled chunks count under the reason setup would have given them; `chunks` is the
+        number of chunks and `culled_chunks` those the chunk cull skipped (0 without the cull)."""
+        if self.cull is not None and not self.write_status:
+            raise RuntimeError("this setup does not write the statuses of culled chunks (status=False)")
+        chunks = {"chunks": n_chunks(max(self.n_tris, 0)), "culled_chunks": 0}
         if self.n_tris <= 0:
-            return {"triangles_in": 0, **{v: 0 for k, v in structs.STATUS_NAMES.items() if k}, "clipped": 0}
+            return {"triangles_in": 0, **{v: 0 for k, v in structs.STATUS_NAMES.items() if k}, "clipped": 0,
+                    **chunks}
+        if self.cull is not None:
+            chunks["culled_chunks"] = chunks["chunks"] - self.cull.visible_chunks()
         status = self.status.get(queue=self.queue)[: self.n_tris]
         counts = np.bincount(status & 15, minlength=8)
         out = {"triangles_in": int(self.n_tris)}
@@ -89,4 +139,5 @@ class SetupPass(RenderPass):
             if code:
                 out[name] = int(counts[code])
         out["clipped"] = int(np.count_nonzero(status & structs.STATUS_CLIPPED))
+        out.update(chunks)
         return out

@@ -8,6 +8,10 @@ with ORTHO=1), then one perspective view per shadowed spot light in light order.
 same (size, projection) share one set of stages and run one after another; each view's prim
 and tile-list totals are copied aside so the pipeline's grow-and-retry sees every view's need.
 
+With RenderConfig.chunk_cull each view's setup first culls the scene's triangle chunks against
+the view (clrender/passes/chunk_cull.py; the chunk boxes are computed once per scene geometry and
+shared with the camera), so a spot light's map reads only the triangles near its cone.
+
 Maps are kept between frames: a view whose matrix, clip range, atlas square, scene upload and
 atlas are those it was last rendered with is not rendered again (static spot lights in an
 animation cost nothing after the first frame; sun cascades follow the camera and are redone).
@@ -34,7 +38,7 @@ class _MapStages:
     """Setup, binning and depth-only raster sized for maps of one side and projection."""
 
     def __init__(self, device, config, size: int, ortho: bool, scene_res):
-        self.setup = SetupPass(device, config, ortho=ortho)
+        self.setup = SetupPass(device, config, ortho=ortho, status=False)    # nothing reads a map's statuses
         self.binning = BinningPass(device, config)
         self.raster = RasterPass(device, config, ortho=ortho, depth_only=True)
         for p in (self.setup, self.binning, self.raster):

@@ -15,7 +15,7 @@ For every foreground pixel of a rendered (or reference-rasterized) `triangle_id`
   screen-footprint axis in level-0 texels, clamped to [0, levels − 1]. sRGB slots (base colour,
   emissive) decode each texel through `clrender.gbuffer.srgb_to_linear_lut()` before filtering,
   linear slots (metallic-roughness, normal, occlusion) use byte/255. Mip levels come from
-  `clrender.scene_gpu.mip_chain` (host preprocessing, not the kernels under test), rebuilt with
+  `clrender.texture_pool.mip_chain` (host preprocessing, not the kernels under test), rebuilt with
   the slot's colour space when the Texture's own flag disagrees with it.
 * **Material** (docs/materials.md "Evaluation per pixel"): slot coordinates uv_s = M_s·(u, v, 1)
   from `UVTransform.matrix()` and the slot's TEXCOORD set; base = factor × texture × vertex
@@ -120,7 +120,7 @@ def texture_levels(texture: Texture, srgb: bool) -> list[np.ndarray]:
     hit = _LEVELS.get(key)
     if hit is not None and hit[0] is texture:
         return hit[1]
-    from clrender.scene_gpu import mip_chain     # lazy: scene_gpu imports pyopencl
+    from clrender.texture_pool import mip_chain
     source = texture if bool(texture.srgb) == bool(srgb) else \
         Texture(texture.name, texture.rgba, texture.wrap_s, texture.wrap_t, bool(srgb))
     lut = srgb_to_linear_lut().astype(np.float64)

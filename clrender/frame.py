@@ -1,0 +1,308 @@
+"""`Frame`: one rendered frame, its arrays read back from the device on first access.
+
+A 720p frame holds about 40 MB of AOVs (G-buffer planes, HDR colour, light counts, image...);
+copying them all to numpy cost more than the shading on CPUs (fresh host pages for every array),
+and most callers use one or two. So `Renderer.render` returns a Frame whose arrays are still on
+the device, behind a `Readback`: `frame.image`, `frame.depth`, ... copy what they need when
+first read (a decoded field reads only its G-buffer plane), and keep it. The values are those the
+eager copy gave: the same arrays, dtypes and shapes.
+
+The device buffers belong to the pipeline and the next `render()` overwrites them. Before it
+enqueues anything, the pipeline retires the previous frame's readback: what that frame has not
+read yet is copied on the device into buffers of its own (a queued copy, no wait; from a pool,
+so a render loop allocates nothing), or read to the host when those copies would exceed
+`SnapshotPool.budget` (frames kept in bulk without being read). Either way a Frame's arrays are
+fixed when render() returns, whatever is rendered after it, and pickling a Frame reads it all.
+"""
+from __future__ import annotations
+
+import weakref
+from dataclasses import dataclass, field
+from functools import cached_property
+from typing import Callable, Optional
+
+import numpy as np
+import pyopencl as cl
+import pyopencl.array as cla
+
+from . import gbuffer as layout
+
+
+class SnapshotPool:
+    """Device buffers that retired readbacks copy their unread AOVs into, reused once the frame
+    holding them is read or collected. `budget`: bytes of copies alive at once; a retire beyond
+    it reads to the host instead (so keeping many unread frames costs host memory, as it always
+    did, not device memory)."""
+
+    def __init__(self, queue, budget: int):
+        self.queue = queue
+        self.budget = int(budget)
+        self.live = 0
+        self.free: dict = {}          # nbytes -> [byte Array]
+
+    def take(self, nbytes: int) -> Optional[cla.Array]:
+        if self.live + nbytes > self.budget:
+            return None
+        self.live += nbytes
+        bucket = self.free.get(nbytes)
+        return bucket.pop() if bucket else cla.empty(self.queue, nbytes, np.uint8)
+
+    def give_back(self, held: list) -> None:
+        for copy in held:
+            self.live -= copy.nbytes
+            self.free.setdefault(copy.nbytes, []).append(copy)
+        held.clear()
+
+    def clear(self) -> None:
+        """Drop the free buffers (a new resolution will not reuse their sizes)."""
+        self.free.clear()
+
+    @property
+    def held_bytes(self) -> int:
+        return self.live + sum(b.nbytes for bucket in self.free.values() for b in bucket)
+
+
+class _Source:
+    """One AOV on the device: `nbytes` at `offset` of `buffer`, read as `dtype` and shaped by
+    `finish` (host array -> the Frame's array)."""
+    __slots__ = ("buffer", "offset", "count", "dtype", "finish")
+
+    def __init__(self, array, finish: Callable):
+        self.buffer, self.offset = array.base_data, array.offset
+        self.count, self.dtype, self.finish = array.size, array.dtype, finish
+
+    @property
+    def nbytes(self) -> int:
+        return self.count * self.dtype.itemsize
+
+
+class Readback:
+    """A frame's arrays: device sources read on first `get`, values already on the host, and
+    makers of the constant ones (all ones without SSAO...), made on first use."""
+
+    def __init__(self, queue=None, pool: Optional[SnapshotPool] = None):
+        self.queue = queue
+        self.pool = pool
+        self.sources: dict = {}
+        self.host: dict = {}
+        self.makers: dict = {}
+        self._held: list = []         # pool buffers this readback's sources were copied into
+        if pool is not None:
+            weakref.finalize(self, pool.give_back, self._held)
+
+    def add(self, name: str, array, finish: Callable = lambda a: a) -> None:
+        """`array`: a pyopencl Array (or a slice of one) the pipeline keeps on the device."""
+        self.sources[name] = _Source(array, finish)
+
+    def put(self, name: str, value) -> None:
+        self.host[name] = value
+
+    def make(self, name: str, maker: Callable) -> None:
+        self.makers[name] = maker
+
+    def names(self) -> set:
+        return set(self.sources) | set(self.host) | set(self.makers)
+
+    def get(self, name: str, out: Optional[np.ndarray] = None):
+        if name in self.host:
+            return self.host[name]
+        if name in self.makers:
+            value = self.makers.pop(name)()
+        else:
+            src = self.sources.pop(name)
+            host = np.empty(src.count, src.dtype) if out is None else out.reshape(-1)
+            cl.enqueue_copy(self.queue, host, src.buffer, src_offset=src.offset, is_blocking=True)
+            value = src.finish(host)
+            if not self.sources and self.pool is not None:
+                self.pool.give_back(self._held)       # everything read: the copies are free again
+        self.host[name] = value
+        return value
+
+    def pending(self) -> bool:
+        return bool(self.sources)
+
+    def retire(self) -> None:
+        """Detach from the pipeline's buffers before the next frame overwrites them: queue a
+        device copy of each unread source into a pool buffer, or read it now when the pool's
+        budget is spent."""
+        for name, src in list(self.sources.items()):
+            copy = self.pool.take(src.nbytes) if self.pool is not None else None
+            if copy is None:
+                self.get(name)
+                continue
+            cl.enqueue_copy(self.queue, copy.data, src.buffer, byte_count=src.nbytes, src_offset=src.offset)
+            self._held.append(copy)
+            src.buffer, src.offset = copy.data, 0
+
+    def fetch_all(self) -> dict:
+        for name in list(self.sources) + list(self.makers):
+            self.get(name)
+        return self.host
+
+
+class _Planes:
+    """What layout.decode indexes: G-buffer plane i, read alone unless the whole buffer is."""
+
+    def __init__(self, frame: "Frame"):
+        self.frame = frame
+
+    def __getitem__(self, i: int) -> np.ndarray:
+        return self.frame._plane(i)
+
+
+@dataclass(frozen=True, eq=False)
+class Frame:
+    """One rendered frame: the lit HDR color, the display image, and the packed G-buffer with
+    decoded views of it. Every array is read from the device (or decoded from the G-buffer) on
+    first access and kept; `fetch()` reads them all."""
+    width: int
+    height: int
+    far: float
+    stats: dict = field(default_factory=dict)
+    # What `image` was encoded from, for deeper outputs (aov_io.display_linear, 16-bit PNG): the
+    # tone-mapping operator and exposure; `ldr` (below) holds the final tone-mapped planes when
+    # LDR post effects (edge AA, FXAA, hatching) ran.
+    tonemap: str = "reinhard"
+    exposure: float = 1.0
+    readback: Readback = field(default_factory=Readback, repr=False)
+
+    AOV_NAMES = ("color", "light_count", "depth", "linear_depth", "normal", "albedo", "triangle_id", "velocity",
+                 "specular_intensity", "specular_power", "emissive", "occlusion", "ao", "shadow", "fragment_count",
+                 "transmittance", "edges", "image")
+
+    # -- arrays read from the device ----------------------------------------------------------
+    @cached_property
+    def gbuffer(self) -> np.ndarray:
+        """(planes, H, W) uint32: the packed G-buffer (layout: clrender.gbuffer.FIELDS)."""
+        out = np.empty((len(layout.PLANES), self.height, self.width), np.uint32)
+        for i in range(len(layout.PLANES)):
+            name = f"gbuffer:{i}"
+            if name in self.readback.host:
+                out[i] = self.readback.host[name]
+            else:
+                self.readback.get(name, out=out[i])
+            self.readback.host[name] = out[i]          # planes read later are views of this
+        return out
+
+    def _plane(self, i: int) -> np.ndarray:
+        return self.readback.get(f"gbuffer:{i}", out=None)
+
+    @cached_property
+    def color(self) -> np.ndarray:
+        """(H, W, 3) float32 linear HDR."""
+        return self.readback.get("color")
+
+    @cached_property
+    def light_count(self) -> np.ndarray:
+        """(H, W) int32 lights the culling assigned to the pixel's tile."""
+        return self.readback.get("light_count")
+
+    @cached_property
+    def image(self) -> np.ndarray:
+        """(H, W, 3) uint8 sRGB, the tone-mapped colour."""
+        return self.readback.get("image")
+
+    @cached_property
+    def ao(self) -> np.ndarray:
+        """(H, W) float32 ambient occlusion in [0, 1], 1 = open; all ones without SSAO."""
+        return self.readback.get("ao")
+
+    @cached_property
+    def shadow(self) -> np.ndarray:
+        """(H, W, K) float32 visibility per shadowed light (sun first), K = 0 without."""
+        return self.readback.get("shadow")
+
+    @cached_property
+    def fragment_count(self) -> np.ndarray:
+        """(H, W) int32 transparent fragments in front of the opaque surface (A-buffer, peeling)."""
+        return self.readback.get("fragment_count")
+
+    @cached_property
+    def transmittance(self) -> np.ndarray:
+        """(H, W) float32 what the transparent layers leave of what lies behind (1 = nothing)."""
+        return self.readback.get("transmittance")
+
+    @cached_property
+    def edges(self) -> np.ndarray:
+        """(H, W) uint8 1 where edge_aa marked an edge pixel (all 0 without edge_aa)."""
+        return self.readback.get("edges")
+
+    @cached_property
+    def ldr(self) -> Optional[np.ndarray]:
+        """(H, W, 3) float32 in [0, 1]: the tone-mapped linear planes `image` was encoded from,
+        when LDR post effects ran; None otherwise."""
+        return self.readback.get("ldr") if "ldr" in self.readback.names() else None
+
+    def fetch(self) -> "Frame":
+        """Read every array now (the device buffers are then no longer needed)."""
+        self.readback.fetch_all()
+        return self
+
+    def __getstate__(self):
+        """Pickled frames carry host arrays only."""
+        state = dict(self.__dict__)
+        host = Readback()
+        host.host = dict(self.readback.fetch_all())
+        state["readback"] = host
+        return state
+
+    # -- views decoded from the G-buffer --------------------------------------------------------
+    def _decode(self, name: str) -> np.ndarray:
+        return layout.decode(_Planes(self), name)
+
+    @cached_property
+    def triangle_id(self) -> np.ndarray:
+        return self._decode("triangle_id").copy()
+
+    @cached_property
+    def _background(self) -> np.ndarray:
+        return self.triangle_id < 0
+
+    @cached_property
+    def depth(self) -> np.ndarray:
+        """View-space depth (float32), +inf on background."""
+        d = self._decode("linear_depth") * np.float32(self.far)
+        return d.astype(np.float32)
+
+    @cached_property
+    def linear_depth(self) -> np.ndarray:
+        return self._decode("linear_depth").copy()
+
+    @cached_property
+    def normal(self) -> np.ndarray:
+        n = self._decode("normal")
+        n[self._background] = 0.0
+        return n
+
+    @cached_property
+    def albedo(self) -> np.ndarray:
+        return self._decode("albedo")
+
+    @cached_property
+    def specular_intensity(self) -> np.ndarray:
+        return self._decode("specular_intensity")
+
+    @cached_property
+    def specular_power(self) -> np.ndarray:
+        p = self._decode("specular_power")
+        p[self._background] = 0.0
+        return p
+
+    @cached_property
+    def velocity(self) -> np.ndarray:
+        return self._decode("velocity")
+
+    @cached_property
+    def emissive(self) -> np.ndarray:
+        """(H, W, 3) emissive factor × texture in [0, 1], before the material's emissive_strength."""
+        return self._decode("emissive")
+
+    @cached_property
+    def occlusion(self) -> np.ndarray:
+        """(H, W) the material's ambient occlusion (occlusionTexture), 1 = open, 0 on background."""
+        return self._decode("occlusion")
+
+    def aov(self, name: str) -> np.ndarray:
+        if name not in self.AOV_NAMES:
+            raise ValueError(f"unknown AOV {name!r}; available: {', '.join(self.AOV_NAMES)}")
+        return getattr(self, name)
