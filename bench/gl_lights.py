@@ -427,18 +427,7 @@ class GLLightsPeer(GLPeer):
         """Wall-clock ms of the frame a user waits for: G-buffer + lights + combine + glFinish +
         glReadPixels of the colour and the depth into numpy (clrender's counterpart: render()
         then Frame.color and Frame.depth)."""
-        with self.ctx:
-            for _ in range(max(0, warmup)):
-                self._draw(camera)
-                self._read_color_depth()
-            times = []
-            for _ in range(int(repeats)):
-                t0 = time.perf_counter()
-                self._draw(camera)
-                self.ctx.finish()
-                self._read_color_depth()
-                times.append((time.perf_counter() - t0) * 1e3)
-            return times
+        return self.time_frame_with_readback(camera, repeats, warmup, read=self._read_color_depth)
 
     def time_frame_gbuffer_only(self, camera, repeats: int = 10, warmup: int = 3) -> list[float]:
         """Wall-clock ms of GLPeer's G-buffer pass alone (+ glFinish), for a pass breakdown."""

@@ -356,18 +356,20 @@ class GLPeer:
                 times.append((time.perf_counter() - t0) * 1e3)
             return times
 
-    def time_frame_with_readback(self, camera, repeats: int = 10, warmup: int = 3) -> list[float]:
-        """Wall-clock ms per frame: draw + finish + readback of all four targets to numpy."""
+    def time_frame_with_readback(self, camera, repeats: int = 10, warmup: int = 3, read=None) -> list[float]:
+        """Wall-clock ms per frame: draw + finish + readback to numpy (`read`, default: all four
+        targets)."""
+        read = read or self._read
         with self.ctx:
             for _ in range(max(0, warmup)):
                 self._draw(camera)
-                self._read()
+                read()
             times = []
             for _ in range(int(repeats)):
                 t0 = time.perf_counter()
                 self._draw(camera)
                 self.ctx.finish()
-                self._read()
+                read()
                 times.append((time.perf_counter() - t0) * 1e3)
             return times
 

@@ -306,9 +306,13 @@ def load_images(jobs: Sequence[Callable[[], np.ndarray]]) -> list[np.ndarray]:
 
 def start_images(jobs: Sequence[Callable[[], np.ndarray]]) -> Callable[[], list[np.ndarray]]:
     """Start the jobs in a thread pool and return `wait() -> images` (a job's error is raised
-    there): the caller works on (the glTF loader reads geometry) while the images decode."""
+    there; `wait.cancel()` drops the jobs not started): the caller works on (the glTF loader reads
+    geometry) while the images decode."""
     if len(jobs) <= 1:
-        return lambda: [job() for job in jobs]
+        def run() -> list[np.ndarray]:
+            return [job() for job in jobs]
+        run.cancel = lambda: None
+        return run
     workers = min(len(jobs), max(1, (os.cpu_count() or 2)), 16)
     pool = ThreadPoolExecutor(max_workers=workers)
     futures = [pool.submit(job) for job in jobs]

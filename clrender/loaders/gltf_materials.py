@@ -103,7 +103,7 @@ def load_materials(doc: Document, features: dict):
 
     def textures() -> list[Texture]:
         return [Texture(n, rgba, ws, wt, srgb=srgb) for n, rgba, (_, ws, wt, srgb) in zip(names, wait(), keys)]
-    textures.cancel = wait.cancel if hasattr(wait, "cancel") else (lambda: None)
+    textures.cancel = wait.cancel
     return materials, textures
 
 
