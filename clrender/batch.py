@@ -160,7 +160,7 @@ def worker_device_spec(explicit: Optional[str] = None) -> Optional[str]:
 
 
 def _renderer(device_spec, width: int, height: int, config):
-    from .device import default_device_info
+    from .device_probe import default_device_info
     from .renderer import Renderer
     info = default_device_info(device_spec)
     key = (info.id, width, height, config)
@@ -243,6 +243,11 @@ def _local_results(tasks):
 
 def _dask_results(tasks, client, resources, retries: int):
     from distributed import as_completed
+
+    from .dask_plugin import WarmupPlugin
+    # Every worker, and any that joins later, builds the kernels once before its first frame.
+    if tasks:
+        client.register_plugin(WarmupPlugin(tasks[0].device, dict(tasks[0].options)))
     futures = {}
     for task in tasks:
         key = f"clrender-frame-{uuid.uuid4().hex[:8]}-{Path(task.scene).stem}-{task.frame}"

@@ -231,7 +231,8 @@ def run_check(devices="all", scenes: Sequence[str | Path] = (), width: int = 96,
               height: int = 64, progress=None, only: Sequence[str] = ()) -> CheckReport:
     """Render the cases (or `scenes`) on every selected device -- "all", a name (select_devices), or
     a list of DeviceInfo -- and compare with the first device; `only`: just the cases so named."""
-    from .device import DeviceError, select_devices
+    from .device import DeviceError
+    from .device_probe import select_devices
     from .loaders import load_scene
     from .renderer import Renderer
 

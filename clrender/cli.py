@@ -16,7 +16,9 @@
                     --ortho HALF_HEIGHT --bit-depth 8|16 --exr --video FILE --fps N --quiet
                     --frames A:B[:STEP]|N|all --time-range T0:T1 --resume --workers N
                     --scheduler ADDRESS --resources NAME=N]
-    clrender devices [--json]
+    clrender devices [--json] [--require NAME]
+    clrender warmup [--device NAME] [--all] [-q]
+    clrender cache info [--json] | clear
     clrender info SCENE [--json]
     clrender check [--device NAME|all] [--scene S] [--json report.json]
 
@@ -39,6 +41,7 @@ import numpy as np
 from .aov_io import INT_AOVS  # noqa: F401  (re-exported)
 from .aov_io import EXR_MISSING, aov_paths, check_video_path, exr_available, write_outputs, write_video
 from .aov_io import preview  # noqa: F401  (re-exported: `clrender.cli.preview` predates aov_io)
+from . import progress
 from .batch import scene_config, scene_size
 
 # The grammar (re-exported: tests and scripts use clrender.cli.build_parser, CLIError, AOVS).
@@ -207,7 +210,6 @@ def check_output_options(args, images) -> None:
 
 
 def cmd_render(args) -> int:
-    from .device import default_device_info
     from .renderer import Renderer
 
     options = render_options(args)
@@ -228,7 +230,12 @@ def cmd_render(args) -> int:
         _note(args, f"{PROG}: note: --fps has no effect on a still without --video")
     _check_distinct(scenes, images, args.aov, exr, video)
     written: list[Path] = []
-    info = default_device_info(args.device)
+    # The device (its probe, on a first run) and the kernels of the flags' configuration get ready
+    # on another thread while the first scene loads: both are mostly waiting (a child process, the
+    # OpenCL compiler), and loading is mostly Python.
+    from .warmup import prepare_in_background
+    ready = prepare_in_background(args.device, options)
+    info = None
 
     renderers: dict = {}            # one per resolution (normally exactly one); kernels build once
     failures = 0
@@ -241,6 +248,8 @@ def cmd_render(args) -> int:
             width, height = scene_size(scene, args.width, args.height)
             camera = _camera(scene, args)
             config = _scene_config(scene, options)
+            if info is None:
+                info = ready.result()          # raises what the device selection raised
             renderer = renderers.get((width, height, config))
             if renderer is None:
                 renderer = renderers[(width, height, config)] = Renderer(width, height, device=info, config=config)
@@ -291,7 +300,8 @@ def _format_stats(stats: dict) -> str:
 
 
 def cmd_devices(args) -> int:
-    from .device import DeviceError, default_device_info, list_devices
+    from .device import DeviceError, list_devices
+    from .device_probe import default_device_info
     from .device_report import device_record, devices_table
 
     devices = list_devices()
@@ -313,6 +323,20 @@ def cmd_devices(args) -> int:
         if not usable:
             raise CLIError(f"--require {name!r}: no OpenCL device matching it runs clrender's kernels")
     return 0
+
+
+def cmd_warmup(args) -> int:
+    """Build and first-launch the kernels now (Docker images, cluster workers): later runs start warm."""
+    from .warmup import warm_up
+    result = warm_up(args.device, everything=args.all)
+    _note(args, f"{PROG}: warmed up {result['device']}: {result['programs']} program(s) built in "
+                f"{result['seconds']:.1f} s; cached in {_cache_folder()}")
+    return 0
+
+
+def _cache_folder() -> str:
+    from .cache import cache_dir
+    return str(cache_dir())
 
 
 def cmd_check(args) -> int:
@@ -423,13 +447,30 @@ def _one_line_warnings(quiet: bool) -> None:
     warnings.showwarning = show
 
 
+def _log_level() -> None:
+    """CLRENDER_LOG=info|debug: the library's log (builds, probes, caches) on stderr."""
+    level = os.environ.get("CLRENDER_LOG", "").strip().upper()
+    if level:
+        import logging
+        handler = logging.StreamHandler(sys.stderr)
+        handler.setFormatter(logging.Formatter(f"{PROG}: %(message)s"))
+        logger = logging.getLogger("clrender")
+        if not logger.handlers:
+            logger.addHandler(handler)
+        logger.setLevel(getattr(logging, level, logging.INFO))
+
+
 def main(argv: Optional[Sequence[str]] = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     _quiet_compiler_logs()
+    _log_level()
     try:
         args = build_parser().parse_args(_join_vector_options(argv))
         _one_line_warnings(getattr(args, "quiet", False))
-        commands = {"render": cmd_render, "devices": cmd_devices, "check": cmd_check, "info": cmd_info}
+        progress.show_bars(not getattr(args, "quiet", False))    # first-run builds: a bar, not silence
+        from . import cli_cache
+        commands = {"render": cmd_render, "devices": cmd_devices, "check": cmd_check, "info": cmd_info,
+                    "warmup": cmd_warmup, "cache": cli_cache.run}
         return int(commands[args.command](args) or 0)
     except SystemExit as exc:                    # --help / --version
         return exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 1)
@@ -449,6 +490,8 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
         message = _one_line(exc) if known else f"{type(exc).__name__}: {_one_line(exc)}"
         print(f"{PROG}: error: {message}", file=sys.stderr)
         return 1
+    finally:
+        progress.show_bars(False)
 
 
 def run() -> None:

@@ -1,29 +1,37 @@
-"""OpenCL device discovery, selection and the program cache.
+"""OpenCL device discovery and the program cache: what clrender knows of a device, in one place.
 
-A `Device` owns one context and one profiling-enabled in-order queue. Programs are built
-once per (device, source + included headers, sorted build options) and shared by every
-Renderer in the process.
+A `Device` owns one context and one profiling-enabled in-order queue. Programs are built once per
+(device, source + included headers, sorted build options), shared by every Renderer in the process,
+and only when a kernel of theirs is first needed: `Device.kernel()` returns a `LazyKernel`, which
+builds its program at the first launch (or when the pipeline builds a frame's programs up front,
+with progress: `Device.build()`).
+
+Which device to use, and whether its driver really runs clrender's kernels (asked of a child
+process), is the layer above: clrender/device_probe.py. The device's limits: clrender/capabilities.py.
 """
 from __future__ import annotations
 
 import hashlib
 import os
 import re
+import threading
+import time
 from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
-from typing import Optional, Sequence
+from typing import Iterable, Optional, Sequence
 
-import pyopencl as cl
+from . import cache, capabilities, progress
 
-from . import capabilities
+cache.configure_pocl_cache()          # before the first OpenCL call: PoCL's kernel cache under clrender's cap
+import pyopencl as cl                 # noqa: E402
 
 ENV_DEVICE = "CLRENDER_DEVICE"
 ENV_PROGRAM_CACHE = "CLRENDER_PROGRAM_CACHE"
 
 
 class DeviceError(RuntimeError):
-    """No OpenCL device matches, or none is installed."""
+    """No OpenCL device matches, none is installed, or a program does not build on it."""
 
 
 def kernels_dir() -> Path:
@@ -49,11 +57,15 @@ class DeviceInfo:
 
     @property
     def platform_short(self) -> str:
-        text = self.platform.lower()
-        if "portable computing" in text or "pocl" in text:
+        if self.is_pocl:
             words = self.cl_device.platform.version.split()
             return f"pocl {words[3]}" if len(words) > 3 else "pocl"
         return self.platform
+
+    @property
+    def is_pocl(self) -> bool:
+        text = self.platform.lower()
+        return "portable computing" in text or "pocl" in text
 
     @property
     def is_simulator(self) -> bool:
@@ -81,65 +93,35 @@ def list_devices() -> list[DeviceInfo]:
     return found
 
 
-def select_devices(spec: Optional[str] = None, simulators: bool = False) -> list[DeviceInfo]:
-    """`all` (every device but simulators, unless `simulators`), a name substring, or `P:D`. Of
-    several devices, those whose compiler cannot build a trivial kernel are left out with a
-    warning naming them."""
-    devices = list_devices()
+def match_devices(spec: str, devices: Optional[Sequence[DeviceInfo]] = None) -> list[DeviceInfo]:
+    """The devices a name substring or "P:D" picks (no probing); DeviceError when none."""
+    devices = list_devices() if devices is None else list(devices)
     if not devices:
         raise DeviceError("no OpenCL device found: install one, e.g. `pip install pocl-binary-distribution`")
-    if spec is None or spec.strip().lower() == "all":
-        wanted = devices if simulators else [d for d in devices if not d.is_simulator]
-        usable = []
-        for d in wanted:
-            error = usable_error(d)
-            if error is None:
-                usable.append(d)
-            else:
-                _warn_unusable(d, error)
-        return usable or wanted or devices
     chosen = [d for d in devices if d.matches(spec)]
     if not chosen:
         names = "; ".join(d.label for d in devices)
         raise DeviceError(f"no OpenCL device matches {spec!r}; available: {names}")
-    if len(chosen) > 1:          # a name several devices match: the ones that cannot build kernels drop out
-        usable = [d for d in chosen if usable_error(d) is None]
-        for d in chosen:
-            if d not in usable:
-                _warn_unusable(d, usable_error(d))
-        chosen = usable or chosen
     return chosen
 
 
-def usable_error(d: DeviceInfo) -> Optional[str]:
-    """None when device `d`, asked in a child process (clrender.device_probe), builds and runs
-    clrender's kernels; else why not."""
-    from .device_probe import probe_error
-    return probe_error(d)
+def _pocl_version(d: DeviceInfo) -> tuple:
+    m = re.search(r"pocl\s+(\d+)\.(\d+)", d.cl_device.platform.version, re.I)
+    return (int(m.group(1)), int(m.group(2)), "rc" not in d.cl_device.platform.version.lower()) if m else (0, 0, False)
 
 
-_warned: set = set()
-
-
-def _warn_unusable(d: DeviceInfo, error: str) -> None:
-    if d.id not in _warned:
-        _warned.add(d.id)
-        import warnings
-        warnings.warn(f"OpenCL device {d.label} cannot build kernels ({error}); left out of 'all'", stacklevel=3)
-
-
-def default_device_info(spec: Optional[str] = None) -> DeviceInfo:
-    """Explicit spec, else $CLRENDER_DEVICE, else a GPU, else a PoCL CPU, else the first."""
-    spec = spec if spec is not None else os.environ.get(ENV_DEVICE) or None
-    if spec is not None:
-        return select_devices(spec)[0]
-    devices = select_devices("all")
-    for pick in (lambda d: capabilities.is_gpu(d.cl_device),
-                 lambda d: "portable computing" in d.platform.lower() and capabilities.is_cpu(d.cl_device)):
-        for d in devices:
-            if pick(d):
-                return d
-    return devices[0]
+def preference_order(devices: Sequence[DeviceInfo]) -> list[DeviceInfo]:
+    """The order the default device is chosen in: GPUs, then PoCL CPUs (newest PoCL first: a newer
+    LLVM knows newer CPUs), then other devices; simulators last. Stable within each group."""
+    def rank(d: DeviceInfo):
+        if d.is_simulator:
+            return (3, ())
+        if capabilities.is_gpu(d.cl_device):
+            return (0, ())
+        if d.is_pocl and capabilities.is_cpu(d.cl_device):
+            return (1, tuple(-v for v in _pocl_version(d)))
+        return (2, ())
+    return sorted(devices, key=rank)
 
 
 def _source_with_includes(path: Path) -> str:
@@ -157,10 +139,53 @@ def _source_with_includes(path: Path) -> str:
     return "\n".join(parts)
 
 
+@dataclass(frozen=True)
+class ProgramSpec:
+    """One program build: a kernels/ file with its -D defines (the device adds its base options)."""
+    filename: str
+    defines: tuple = ()          # sorted (name, value) pairs
+
+    @classmethod
+    def of(cls, filename: str, defines: Optional[dict] = None) -> "ProgramSpec":
+        return cls(filename, tuple(sorted((str(k), str(v)) for k, v in (defines or {}).items())))
+
+    def __str__(self) -> str:
+        return self.filename + "".join(f" {k}={v}" for k, v in self.defines)
+
+
+class LazyKernel:
+    """A kernel whose program is built at its first use; launches like a pyopencl Kernel."""
+
+    __slots__ = ("device", "spec", "name", "_kernel")
+
+    def __init__(self, device: "Device", spec: ProgramSpec, name: str):
+        self.device, self.spec, self.name, self._kernel = device, spec, name, None
+
+    @property
+    def built(self) -> bool:
+        return self.device.has_program(self.spec)
+
+    def resolve(self) -> cl.Kernel:
+        if self._kernel is None:
+            prog = self.device.program_for(self.spec)
+            cache_ = prog.__dict__.setdefault("_clrender_kernels", {})    # one Kernel object per name
+            if self.name not in cache_:
+                cache_[self.name] = cl.Kernel(prog, self.name)
+            self._kernel = cache_[self.name]
+        return self._kernel
+
+    def __call__(self, *args, **kwargs):
+        return self.resolve()(*args, **kwargs)
+
+    def __getattr__(self, attr):
+        return getattr(self.resolve(), attr)
+
+
 class Device:
     """One OpenCL device with its context, queue and program cache."""
 
     _programs: dict = {}
+    build_count = 0                     # programs built from source or binary in this process (tests)
 
     def __init__(self, info: DeviceInfo):
         self.info = info
@@ -168,56 +193,115 @@ class Device:
         self.context = cl.Context([self.cl_device])
         self.queue = cl.CommandQueue(self.context, properties=cl.command_queue_properties.PROFILING_ENABLE)
         self.base_options = capabilities.build_options(self.cl_device)
+        self.built: list = []           # (ProgramSpec, seconds) in build order, this device
+        # PoCL: no program binaries (see _binary_name); tests turn them on to test the store itself
+        self.keep_binaries = not info.is_pocl
 
     @classmethod
     def get(cls, spec: Optional[str | DeviceInfo] = None) -> "Device":
-        info = spec if isinstance(spec, DeviceInfo) else default_device_info(spec)
+        """The Device for a DeviceInfo, "P:D" or name (no probing: clrender.device_probe.open_device
+        chooses and checks a device for a Renderer)."""
+        if isinstance(spec, DeviceInfo):
+            info = spec
+        else:
+            spec = spec if spec is not None else os.environ.get(ENV_DEVICE) or None
+            info = match_devices(spec)[0] if spec else preference_order(list_devices())[0]
         return _device_for(info.id, info.platform, info.name)
 
     @property
     def name(self) -> str:
         return self.info.label
 
+    def _key(self, spec: ProgramSpec):
+        path = kernels_dir() / spec.filename
+        opts = sorted({*self.base_options, f"-I{path.parent}", *(f"-D{k}={v}" for k, v in spec.defines)})
+        digest = _digest(path)
+        return (self.info.id, self.cl_device.int_ptr, digest, tuple(opts)), path, digest, opts
+
+    @staticmethod
+    def session_specs() -> set:
+        """Every distinct (device, ProgramSpec) built in this process, as specs (tests count them)."""
+        return {spec for d in _opened for spec, _ in d.built}
+
+    def has_program(self, spec: ProgramSpec) -> bool:
+        return self._key(spec)[0] in Device._programs
+
     def program(self, filename: str, defines: Optional[dict] = None, options: Sequence[str] = ()) -> cl.Program:
-        """Build (once) kernels/<filename> with -D defines and extra options."""
-        path = kernels_dir() / filename
-        source = path.read_text()
-        opts = sorted({*self.base_options, *options, f"-I{path.parent}",
-                       *(f"-D{k}={v}" for k, v in (defines or {}).items())})
-        digest = hashlib.sha256(_source_with_includes(path).encode()).hexdigest()
-        key = (self.info.id, self.cl_device.int_ptr, digest, tuple(opts))
+        """Build (once) kernels/<filename> with -D defines."""
+        if options:
+            raise ValueError("extra build options go through defines (the cache key is the ProgramSpec)")
+        return self.program_for(ProgramSpec.of(filename, defines))
+
+    def program_for(self, spec: ProgramSpec) -> cl.Program:
+        key, path, digest, opts = self._key(spec)
         prog = Device._programs.get(key)
+        if prog is not None:
+            return prog
+        with _build_lock:                   # a warm-up thread may be building the same program
+            prog = Device._programs.get(key)
+            if prog is not None:
+                return prog
+            stage = progress.current()
+            if stage is None:               # a build outside a frame's up-front builds: its own stage
+                with progress.stage("building OpenCL program", 1, self.name) as own:
+                    return self._build(spec, key, path, digest, opts, own)
+            return self._build(spec, key, path, digest, opts, stage)
+
+    def _build(self, spec, key, path, digest, opts, stage) -> cl.Program:
+        start = time.perf_counter()
+        stage.note(str(spec))
+        prog = self._cached_binary(digest, opts)
         if prog is None:
-            prog = self._cached_binary(digest, opts)
-            if prog is None:
-                try:
-                    prog = cl.Program(self.context, source).build(options=opts)
-                except cl.RuntimeError as exc:
-                    raise DeviceError(f"building kernels/{filename} failed on {self.name}:\n{exc}") from None
-                self._store_binary(digest, opts, prog)
-            Device._programs[key] = prog
+            try:
+                prog = cl.Program(self.context, path.read_text()).build(options=opts)
+            except cl.Error as exc:
+                first = next((ln.strip() for ln in str(exc).splitlines() if "error" in ln.lower()), "")
+                raise DeviceError(f"building kernels/{spec} failed on {self.name}: "
+                                  f"{first or str(exc).splitlines()[0]}") from None
+            self._store_binary(digest, opts, prog)
+        Device._programs[key] = prog
+        Device.build_count += 1
+        self.built.append((spec, time.perf_counter() - start))
+        progress.log.debug("built %s in %.2f s on %s", spec, self.built[-1][1], self.name)
+        stage.advance(str(spec))
         return prog
 
-    # A source build costs ~0.1 s even when PoCL's kernel cache is warm (preprocessing, hashing,
-    # parsing the cached bitcode); a build from the program's own binary costs ~0.02 s. Binaries are
-    # kept per driver, device, source (with headers) and options; a binary the driver refuses is
-    # rebuilt from source and replaced. CLRENDER_PROGRAM_CACHE=0 turns the cache off.
-    def _binary_path(self, digest: str, opts: list) -> Optional[Path]:
-        if os.environ.get(ENV_PROGRAM_CACHE, "1") == "0":
+    def build(self, specs: Iterable[ProgramSpec], what: str = "building OpenCL programs") -> int:
+        """Build every spec not built yet, counted in the open progress stage (or one of their own:
+        count and ETA); returns how many were built."""
+        todo = list(dict.fromkeys(s for s in specs if not self.has_program(s)))
+        if not todo:
+            return 0
+        stage = progress.current()
+        if stage is not None:
+            stage.add_total(len(todo))
+            for spec in todo:
+                self.program_for(spec)
+        else:
+            with progress.stage(what, len(todo), self.name):
+                for spec in todo:
+                    self.program_for(spec)
+        return len(todo)
+
+    # Program binaries. PoCL's clBuildProgram makes only LLVM IR and compiles each kernel at its first
+    # launch (per local size), into its own kernel cache; asking PoCL for a program's binaries compiles
+    # every kernel of the program once more for any local size (seconds per program, whether or not the
+    # kernel is ever launched), so on PoCL clrender keeps no binaries and relies on PoCL's cache (which
+    # lives under clrender's cache folder, clrender/cache.py). Other drivers (NVIDIA, Oclgrind) return
+    # what they built: their binaries are kept per driver, device, source and options; a binary the
+    # driver refuses is rebuilt from source. CLRENDER_PROGRAM_CACHE=0 turns this off.
+    def _binary_name(self, digest: str, opts: list) -> Optional[str]:
+        if os.environ.get(ENV_PROGRAM_CACHE, "1") == "0" or not self.keep_binaries:
             return None
-        from .device_probe import _cache_dir
         d, h = self.cl_device, hashlib.sha256()
         for part in (d.platform.name, d.platform.version, d.name, d.vendor, d.driver_version, d.version,
                      cl.VERSION_TEXT, digest, *opts):
             h.update(str(part).encode() + b"\0")
-        return _cache_dir() / "programs" / f"{h.hexdigest()[:40]}.bin"
+        return f"programs/{h.hexdigest()[:40]}.bin"
 
     def _cached_binary(self, digest: str, opts: list) -> Optional[cl.Program]:
-        path = self._binary_path(digest, opts)
-        try:
-            binary = path.read_bytes() if path is not None else None
-        except OSError:
-            return None
+        name = self._binary_name(digest, opts)
+        binary = cache.read_bytes(name) if name else None
         if not binary:
             return None
         try:
@@ -228,29 +312,66 @@ class Device:
         return prog
 
     def _store_binary(self, digest: str, opts: list, prog: cl.Program) -> None:
-        path = self._binary_path(digest, opts)
-        if path is None:
+        name = self._binary_name(digest, opts)
+        if name is None:
             return
         try:
             binary = prog.get_info(cl.program_info.BINARIES)[0]
-            if binary:
-                from .aov_io import atomic_write
-                atomic_write(path, lambda tmp: Path(tmp).write_bytes(bytes(binary)))
-        except (OSError, cl.Error):
-            pass                        # an unwritable cache only costs a source build next time
+        except cl.Error:
+            return
+        if binary:
+            cache.write_bytes(name, bytes(binary))     # an unwritable cache only costs a build next time
 
-    def kernel(self, filename: str, name: str, defines: Optional[dict] = None) -> cl.Kernel:
-        """One shared kernel object per (program, name): retrieving kernels is not free."""
-        prog = self.program(filename, defines)
-        cache = prog.__dict__.setdefault("_clrender_kernels", {})
-        if name not in cache:
-            cache[name] = cl.Kernel(prog, name)
-        return cache[name]
+    def kernel(self, filename: str, name: str, defines: Optional[dict] = None) -> LazyKernel:
+        """Kernel `name` of kernels/<filename> built with `defines`, built at its first use."""
+        return LazyKernel(self, ProgramSpec.of(filename, defines), name)
+
+
+_digests: dict = {}
+_build_lock = threading.RLock()
+
+
+def _digest(path: Path) -> str:
+    """sha256 of a kernel file and its headers, once per process per file (sources do not change
+    under a running renderer; tests that edit kernels use fresh files)."""
+    stat = path.stat()
+    key = (path, stat.st_mtime_ns, stat.st_size)
+    if key not in _digests:
+        _digests[key] = hashlib.sha256(_source_with_includes(path).encode()).hexdigest()
+    return _digests[key]
+
+
+_opened: list = []          # every Device this process opened
 
 
 @lru_cache(maxsize=None)
 def _device_for(device_id: str, platform: str, name: str) -> Device:
     for info in list_devices():
         if info.id == device_id and info.name == name and info.platform == platform:
-            return Device(info)
+            _opened.append(Device(info))
+            return _opened[-1]
     raise DeviceError(f"OpenCL device {device_id} ({name}) disappeared")
+
+
+def lazy_kernels(obj, seen: Optional[set] = None, depth: int = 0) -> list[LazyKernel]:
+    """Every LazyKernel held by `obj` (a pass) and the objects it holds: attributes, lists, tuples,
+    dicts, to a few levels (sub-passes, scan helpers). What a frame will launch, found without each
+    pass listing its programs twice."""
+    seen = set() if seen is None else seen
+    if id(obj) in seen or depth > 4:
+        return []
+    seen.add(id(obj))
+    if isinstance(obj, LazyKernel):
+        return [obj]
+    if isinstance(obj, dict):
+        children = list(obj.values())
+    elif isinstance(obj, (list, tuple)):
+        children = list(obj)
+    elif hasattr(obj, "__dict__") and type(obj).__module__.startswith("clrender"):
+        children = list(vars(obj).values())
+    else:
+        return []
+    found = []
+    for child in children:
+        found += lazy_kernels(child, seen, depth + 1)
+    return found

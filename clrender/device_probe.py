@@ -1,35 +1,37 @@
-"""Whether an OpenCL device really builds and runs clrender's kernels, asked in a child process.
+"""Which OpenCL device clrender uses, and whether its driver really runs clrender's kernels.
 
-A trivial kernel is not enough of a test: pip's PoCL 3.0 on some CPUs compiles it, then fails
-clrender's own programs with INVALID_KERNEL_NAME, or crashes the process outright when its
-kernel cache is cold. So `select_devices` and `clrender devices` ask a child process
-(`python -m clrender.device_probe P:D NAME`) to build every kernel file and the Renderer variants,
-and to render one triangle; a device whose child fails or dies is left out (reported as failed),
-and this process never loads a broken driver's builds. The answer is cached on disk ($CLRENDER_CACHE_DIR, else
-~/.cache/clrender) per driver, device and kernel sources, so each machine asks once per kernel
-change (not per environment: PoCL's work-group method or disabled kernel cache would only make
-the same answer slower to get).
+A trivial kernel is not enough of a test: pip's PoCL 3.0 on some CPUs builds it, then crashes
+(after minutes of compiling) or fails clrender's own programs with INVALID_KERNEL_NAME. So before a
+device is used, a child process (`python -m clrender.probe_child P:D NAME`) builds and launches what
+the default Renderer runs (one triangle, one light). A device whose child fails or dies is reported
+in one line and never loads a broken build into this process. Only the device that will be used is
+asked (the one named, else the first of `device.preference_order`; the next one only if it fails),
+and the child's compiles are not lost: PoCL's kernel cache is shared between processes, so the
+caller's own builds of the same programs are cache hits and the probe costs a process start. The
+child reports each program and kernel it builds; this process shows them as a progress stage. The
+answer is cached (clrender/cache.py) per driver, device and kernel sources.
 """
 from __future__ import annotations
 
 import hashlib
-import json
 import os
 import subprocess
 import sys
+import threading
+import warnings
 from pathlib import Path
 from typing import Optional
 
+from . import cache, progress
+from .device import (ENV_DEVICE, Device, DeviceError, DeviceInfo, kernels_dir, list_devices, match_devices,
+                     preference_order)
+
 PROBE_TIMEOUT_S = 900
+ENV_IN_PROBE = "CLRENDER_PROBE_CHILD"       # set in the child: it is the probe
 _answers: dict = {}
 
 
-def _cache_dir() -> Path:
-    return Path(os.environ.get("CLRENDER_CACHE_DIR") or Path.home() / ".cache" / "clrender")
-
-
-def _key(info) -> str:
-    from .device import kernels_dir
+def _key(info: DeviceInfo) -> str:
     d = info.cl_device
     h = hashlib.sha256()
     for part in (d.platform.name, d.platform.version, d.name, d.driver_version, d.version):
@@ -40,77 +42,122 @@ def _key(info) -> str:
     return h.hexdigest()[:32]
 
 
-def probe_error(info) -> Optional[str]:
+def probe_error(info: DeviceInfo) -> Optional[str]:
     """None when `info`'s device builds and runs clrender's kernels, else why not (one line)."""
+    if os.environ.get(ENV_IN_PROBE):
+        return None
     key = _key(info)
     if key in _answers:
         return _answers[key]
-    path = _cache_dir() / f"probe-{key}.json"
-    try:
-        answer = json.loads(path.read_text())["error"]
-    except (OSError, ValueError, KeyError):
+    name = f"probe/{key}.json"
+    record = cache.read_json(name)
+    if isinstance(record, dict) and "error" in record:
+        answer = record["error"]
+    else:
         answer = _ask_child(info)
-        from .aov_io import atomic_write
-        text = json.dumps({"device": info.label, "error": answer})
-        try:
-            atomic_write(path, lambda tmp: Path(tmp).write_text(text))
-        except OSError:
-            pass                          # an unwritable cache only costs a probe next time
+        cache.write_json(name, {"device": info.label, "error": answer})
     _answers[key] = answer
     return answer
 
 
-def _ask_child(info) -> Optional[str]:
+def _ask_child(info: DeviceInfo) -> Optional[str]:
+    """Run the probe child, turning its "progress" lines into a progress stage; its last line is
+    "ok" or why it failed."""
     env = dict(os.environ, PYTHONPATH=os.pathsep.join(filter(None, [str(Path(__file__).resolve().parents[1]),
                                                                       os.environ.get("PYTHONPATH")])))
+    env[ENV_IN_PROBE] = "1"
+    proc = subprocess.Popen([sys.executable, "-m", "clrender.probe_child", info.id, info.name], env=env,
+                            stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
+    timer = threading.Timer(PROBE_TIMEOUT_S, proc.kill)
+    timer.start()
+    lines = []
     try:
-        proc = subprocess.run([sys.executable, "-m", "clrender.device_probe", info.id, info.name], env=env,
-                              capture_output=True, text=True, timeout=PROBE_TIMEOUT_S)
-    except subprocess.TimeoutExpired:
-        return f"clrender's kernels did not build within {PROBE_TIMEOUT_S} s"
-    if proc.returncode == 0 and proc.stdout.strip().endswith("ok"):
+        with progress.stage("checking the device (building and running clrender's kernels)", None,
+                            info.label) as stage:
+            for line in proc.stdout:
+                line = line.strip()
+                if line.startswith("progress "):
+                    stage.advance(line[len("progress "):])
+                elif line.startswith("total "):
+                    pass                  # the child's own stages' totals: this one counts what it did
+                elif line:
+                    lines.append(line)
+        proc.wait()
+    finally:
+        timed_out = not timer.is_alive() and proc.returncode is not None and proc.returncode < 0 \
+            and not lines
+        timer.cancel()
+    if proc.returncode == 0 and lines and lines[-1] == "ok":
         return None
-    lines = [ln.strip() for ln in proc.stdout.splitlines() if ln.strip()]
+    if timed_out:
+        return f"clrender's kernels did not build and run within {PROBE_TIMEOUT_S} s"
     why = lines[-1] if lines else ""
     if proc.returncode < 0 and not why:
-        why = f"the driver crashed building clrender's kernels (signal {-proc.returncode})"
+        why = f"the driver crashed building or running clrender's kernels (signal {-proc.returncode})"
     return (why or f"exit status {proc.returncode}")[:200]
 
 
-def _child(device_id: str, name: str) -> int:
-    import warnings
-    warnings.simplefilter("ignore")
-    import numpy as np
-
-    from . import capabilities
-    from .camera import Camera
-    from .device import list_devices
-    from .device_report import build_every_kernel
-    from .renderer import Renderer
-    from .scene import Scene
-    info = next((d for d in list_devices() if d.id == device_id and d.name == name), None)
-    if info is None:
-        print(f"device {device_id} ({name}) not found")
-        return 2
-    code = 0
-    try:
-        error = capabilities.compiler_error(info.cl_device)
-        if error is not None:
-            raise RuntimeError(error)
-        build_every_kernel(info)
-        scene = Scene.from_arrays(np.array([[-1, -1, 0], [1, -1, 0], [0, 1, 0]], np.float32),
-                                  np.array([[0, 1, 2]], np.int32))
-        frame = Renderer(8, 8, device=info).render(scene, Camera.look_at((0, 0, 3), (0, 0, 0)))
-        if not (np.isfinite(frame.depth).sum() > 0 and frame.image.any()):
-            print("a test triangle rendered empty")
-            code = 1
-    except Exception as exc:
-        print(f"{type(exc).__name__}: {(str(exc).strip().splitlines() or [''])[0]}")
-        code = 1
-    print("ok" if code == 0 else "", flush=True)
-    sys.stderr.flush()
-    os._exit(code)                # skip the driver's teardown (pip's PoCL 3.0 may abort in it)
+_warned: set = set()
 
 
-if __name__ == "__main__":
-    sys.exit(_child(sys.argv[1], sys.argv[2]))
+def _warn_unusable(d: DeviceInfo, error: str, consequence: str) -> None:
+    if d.id not in _warned:
+        _warned.add(d.id)
+        warnings.warn(f"OpenCL device {d.label} cannot run clrender's kernels ({error}); {consequence}",
+                      stacklevel=3)
+
+
+def select_devices(spec: Optional[str] = None, simulators: bool = False) -> list[DeviceInfo]:
+    """Devices for a list ("all", a name substring or "P:D"): `all` is every device but simulators
+    (unless `simulators`), each probed; those that cannot run clrender's kernels are left out with
+    a warning naming them. A name or id several devices match: the same. A single match is
+    returned unprobed (a Renderer on it probes it: open_device)."""
+    devices = list_devices()
+    if not devices:
+        raise DeviceError("no OpenCL device found: install one, e.g. `pip install pocl-binary-distribution`")
+    if spec is None or spec.strip().lower() == "all":
+        chosen = devices if simulators else [d for d in devices if not d.is_simulator]
+    else:
+        chosen = match_devices(spec, devices)
+        if len(chosen) == 1:
+            return chosen
+    usable = []
+    for d in chosen:
+        error = probe_error(d)
+        if error is None:
+            usable.append(d)
+        else:
+            _warn_unusable(d, error, "left out")
+    return usable or chosen
+
+
+def default_device_info(spec: Optional[str | DeviceInfo] = None) -> DeviceInfo:
+    """The device a Renderer uses: `spec` (a DeviceInfo, name or "P:D"), else $CLRENDER_DEVICE, else
+    the first of device.preference_order (a GPU, else the newest PoCL CPU, ...) whose probe passes.
+    Only that device is probed (the next one only if it fails). DeviceError, in one line, when the
+    named device cannot run clrender's kernels."""
+    if isinstance(spec, DeviceInfo):
+        candidates, named = [spec], True
+    else:
+        spec = spec if spec is not None else os.environ.get(ENV_DEVICE) or None
+        named = spec is not None
+        devices = list_devices()
+        candidates = preference_order(match_devices(spec, devices) if named else devices)
+        if not named:
+            candidates = [d for d in candidates if not d.is_simulator] or candidates
+    if not candidates:
+        raise DeviceError("no OpenCL device found: install one, e.g. `pip install pocl-binary-distribution`")
+    errors = []
+    for d in candidates:
+        error = probe_error(d)
+        if error is None:
+            return d
+        errors.append(f"{d.label}: {error}")
+        if len(candidates) > 1:
+            _warn_unusable(d, error, "trying the next device")
+    raise DeviceError("no OpenCL device runs clrender's kernels (" + "; ".join(errors) + ")")
+
+
+def open_device(spec: Optional[str | DeviceInfo] = None) -> Device:
+    """The probed Device for `spec` (see default_device_info)."""
+    return Device.get(default_device_info(spec))

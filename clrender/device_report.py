@@ -1,6 +1,5 @@
-"""What `clrender devices` reports: each OpenCL device's limits and whether clrender's kernels
-build on it (every kernels/*.cl with its defaults, then a renderer with every effect on, so
-the variants the pipeline builds with -D options are compiled too)."""
+"""What `clrender devices` reports: each OpenCL device's limits (clrender/capabilities.py) and
+whether clrender's kernels build and run on it (the probe: clrender/device_probe.py)."""
 from __future__ import annotations
 
 from typing import Callable, Optional
@@ -17,21 +16,10 @@ def device_record(d, default_id: Optional[str], describe_error: Callable[[BaseEx
     except Exception as exc:                     # a broken driver must not hide the others
         record["summary_error"] = describe_error(exc)
         record.update(capabilities.summary(d.cl_device, tolerant=True))
-    from .device import usable_error                 # built in a child process (clrender.device_probe)
-    error = usable_error(d)
+    from .device_probe import probe_error            # asked of a child process
+    error = probe_error(d)
     record["kernels"], record["kernels_error"] = ("ok", None) if error is None else ("failed", error)
     return record
-
-
-def build_every_kernel(d) -> None:
-    from .device import Device, kernels_dir
-    from .renderer import Renderer
-    device = Device.get(d)
-    for source in sorted(kernels_dir().glob("*.cl")):
-        device.program(source.name)
-    Renderer(8, 8, device=d, ssao=True)               # with the A-buffer
-    Renderer(8, 8, device=d, transparency="depth_peeling", refraction=True)
-    Renderer(8, 8, device=d, max_fragments_per_pixel=4)   # the capped fill
 
 
 def format_bytes(n) -> str:

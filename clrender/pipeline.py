@@ -3,6 +3,7 @@ resolution, builds programs once, times every pass with OpenCL profiling, and ha
 buffers whose size is known only on the device (count, grow, render again)."""
 from __future__ import annotations
 
+from contextlib import contextmanager, nullcontext
 from time import perf_counter as _perf_counter
 
 import weakref
@@ -12,6 +13,8 @@ import pyopencl as cl
 import pyopencl.array as cla
 
 from . import gbuffer as layout
+from . import progress
+from .device import lazy_kernels
 from .frame import Readback, SnapshotPool
 from .passes.base import zeros
 from .passes.encode import EncodePass
@@ -113,6 +116,7 @@ class Pipeline:
         self.snapshots = SnapshotPool(self.queue, min(device.cl_device.global_mem_size // 8, 1 << 30))
         self._pending = None
         self._totals = None           # the overflow totals gathered for one read
+        self._launched: set = set()   # passes launched at least once (their kernels compiled)
 
     def _lighting_passes(self, device, config) -> list:
         """From the light lists to the colour (docs/variants.md). deferred: shading from the
@@ -234,17 +238,23 @@ class Pipeline:
             res.values.update(width=k * width, height=k * height)     # the resolve switches to the output size
             for p in self.transparency:
                 p.clear_stage_events()
-            for p in self.passes:
-                if p in self.transparency and not transparent:
-                    continue                        # no BLEND triangle: no buffer, no kernel
-                p.publish(res)
-                if p.name == "particles" and not res["particle_systems"]:
-                    continue                        # no particles: no kernel
-                if p.name == "shadow" and not res["shadow_view_count"]:
-                    continue                        # no shadowed light, no shadowed sun: no kernel
-                start = cl.enqueue_marker(self.queue)
-                p.run(res)
-                timings.append((p.name, start, cl.enqueue_marker(self.queue)))
+            with self._first_use_stage(res, transparent) as stage:
+                for p in self.passes:
+                    if p in self.transparency and not transparent:
+                        continue                        # no BLEND triangle: no buffer, no kernel
+                    p.publish(res)
+                    if p.name == "particles" and not res["particle_systems"]:
+                        continue                        # no particles: no kernel
+                    if p.name == "shadow" and not res["shadow_view_count"]:
+                        continue                        # no shadowed light, no shadowed sun: no kernel
+                    if stage is not None:               # programs only known now (shadow-map stages)
+                        self.device.build(k.spec for k in lazy_kernels(p))
+                    start = cl.enqueue_marker(self.queue)
+                    p.run(res)
+                    timings.append((p.name, start, cl.enqueue_marker(self.queue)))
+                    if stage is not None and p not in self._launched and p.name != "shadow":
+                        self._launched.add(p)
+                        stage.advance(f"first launch: {p.name}")
             clock.lap("enqueue_ms")
             grown = self._grow_overflowing()
             clock.lap("overflow_wait_ms")
@@ -345,6 +355,24 @@ class Pipeline:
             rb.add("ldr", res["ldr"][: 3 * out_px],
                    lambda a: np.ascontiguousarray(np.moveaxis(a.reshape(3, height, width), 0, -1)))
         return rb
+
+    def _first_use_stage(self, res, transparent):
+        """A progress stage for a frame that builds programs: the programs of the passes this frame
+        runs, built up front (count and ETA), then each pass's first launch (where PoCL compiles
+        its kernels). None (no stage) when everything is built: a warm pipeline reports nothing."""
+        running = [p for p in self.passes if (transparent or p not in self.transparency)
+                   and not (p.name == "particles" and not res["particle_systems"])]
+        specs = [k.spec for p in running for k in lazy_kernels(p) if not k.built]
+        if not specs:
+            return nullcontext()
+
+        @contextmanager
+        def stage():
+            first = [p for p in running if p not in self._launched and p.name != "shadow"]
+            with progress.stage("building OpenCL programs", len(first), self.device.name) as s:
+                self.device.build(specs)
+                yield s
+        return stage()
 
     def _read_totals(self, totals: list) -> list:
         """The int32 first elements of `totals`, gathered on the device and read in one blocking

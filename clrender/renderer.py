@@ -9,7 +9,8 @@ from typing import Optional
 import numpy as np
 
 from .camera import Camera
-from .device import Device, DeviceInfo
+from .device import DeviceInfo
+from .device_probe import open_device
 from .frame import Frame
 from .scene import Scene
 
@@ -211,7 +212,8 @@ class RenderConfig:
 class Renderer:
     """Renders scenes at a fixed resolution on one OpenCL device.
 
-    device: None (CLRENDER_DEVICE, else a GPU, else PoCL), a name substring, "P:D", or a DeviceInfo.
+    device: None (CLRENDER_DEVICE, else a GPU, else the newest PoCL), a name substring, "P:D", or a
+    DeviceInfo. Programs build at the first render that needs them (progress: clrender.progress).
     Options are RenderConfig fields (e.g. tile_size=8)."""
 
     def __init__(self, width: int = 1280, height: int = 720, device: Optional[str | DeviceInfo] = None,
@@ -227,7 +229,7 @@ class Renderer:
         if (k * self.width) * (k * self.height) * 6 >= 2**31:      # kernels index up to 6 planes with 32-bit ints
             raise ValueError(f"{self.width}x{self.height} at supersample {k} is {k * self.width}x{k * self.height} "
                              f"internally, too many pixels for 32-bit buffer offsets; lower supersample or the size")
-        self.device = Device.get(device)
+        self.device = open_device(device)       # probed once per machine and kernel change (device_probe)
         from . import memory
         memory.check(self.device, self.width, self.height, self.config)   # before building or allocating
         from .pipeline import Pipeline

@@ -242,8 +242,8 @@ def _build_on_device(device, textures, infos, levels, texels_buf) -> None:
     taps_buf, weights_buf = cla.to_device(q, taps), cla.to_device(q, weights)
     decode, encode = cla.to_device(q, decode_tables()), cla.to_device(q, encode_table())
     linear = [cla.empty(q, 4 * n, np.float32) for n in scratch]     # float4 ping-pong, levels 1, 3.. / 2, 4..
-    kernels = {(name, k): device.kernel("mipmap.cl", name, {"FROM_TEXELS": k, "ENCODE_INTERVALS": ENCODE_INTERVALS})
-               for name in ("mip_level", "mip_half") for k in (0, 1)}
+    kernels = {name: device.kernel("mipmap.cl", name, {"ENCODE_INTERVALS": ENCODE_INTERVALS})
+               for name in ("mip_level", "mip_half")}
     for t, tex in enumerate(textures):
         first = int(infos[t]["first_level"])
         for k in range(1, len(sizes[t])):
@@ -254,11 +254,11 @@ def _build_on_device(device, textures, infos, levels, texels_buf) -> None:
                     np.int32(w0), dst.data, np.int32(levels[first + k]["offset"]), np.int32(w1), np.int32(h1))
             order = np.int32(pil_vertical_first(h0, w0))
             if _halves(w0) and _halves(h0):
-                kernels["mip_half", int(k == 1)](q, gsize, _WG, *head, np.int32(min(w0, 2)), np.int32(min(h0, 2)),
-                                                 order, decode.data, encode.data)
+                kernels["mip_half"](q, gsize, _WG, *head, np.int32(min(w0, 2)), np.int32(min(h0, 2)),
+                                    order, decode.data, encode.data, np.int32(k == 1))
             else:
-                kernels["mip_level", int(k == 1)](q, gsize, _WG, *head, taps_buf.data, np.int32(rows[(w0, w1)]),
-                                                  np.int32(rows[(h0, h1)]), order, weights_buf.data, decode.data,
-                                                  encode.data)
+                kernels["mip_level"](q, gsize, _WG, *head, taps_buf.data, np.int32(rows[(w0, w1)]),
+                                     np.int32(rows[(h0, h1)]), order, weights_buf.data, decode.data,
+                                     encode.data, np.int32(k == 1))
     # No finish: the scratch arrays are released on return, and OpenCL keeps a released buffer until
     # the enqueued commands that use it complete; the in-order queue runs the frame after the levels.

@@ -7,13 +7,13 @@
  * from the host's `pil_vertical_first`). `mip_level` does that with the host's taps (`box_taps`);
  * `mip_half`, for the usual axes (halved from an even size: 2 taps of 0.5, or staying 1), uses
  * floats: a * 0.5 + b * 0.5 of two floats is exact, so one float rounding equals PIL's.
- * Level 1 (FROM_TEXELS 1) decodes the 8-bit level 0 through the decode tables (the host's float32
- * values); later levels read the float values the previous launch kept. Encoding: linear codes as
- * the host computes them, in float; sRGB codes from a table of ENCODE_INTERVALS equal intervals of
- * [0, 1], entry (threshold, base): code = base + (x >= threshold), built by the host from its own
- * encoder's exact thresholds (`encode_table`; at most one code boundary per interval). No pow.
- * FP_CONTRACT is off so that no multiply-add fuses into an fma the host does not do. Needs
- * cl_khr_fp64 (mip_level).
+ * Level 1 (from_texels = 1, a runtime argument: one program for every level) decodes the 8-bit
+ * level 0 through the decode tables (the host's float32 values); later levels read the float values
+ * the previous launch kept. Encoding: linear codes as the host computes them, in float; sRGB codes
+ * from a table of ENCODE_INTERVALS equal intervals of [0, 1], entry (threshold, base): code = base +
+ * (x >= threshold), built by the host from its own encoder's exact thresholds (`encode_table`; at
+ * most one code boundary per interval). No pow. FP_CONTRACT is off so that no multiply-add fuses
+ * into an fma the host does not do. Needs cl_khr_fp64 (mip_level).
  *
  * Buffers: texels uint[] the pool, RGBA8 per uint (R low byte): level 0 read at src_offset (level 1
  * only), the new level written at dst_offset (dst_w x dst_h); src float4[] the level above's linear
@@ -26,24 +26,20 @@
 #pragma OPENCL EXTENSION cl_khr_fp64 : enable
 #pragma OPENCL FP_CONTRACT OFF
 
-#ifndef FROM_TEXELS
-#define FROM_TEXELS 0
-#endif
 #ifndef ENCODE_INTERVALS
 #define ENCODE_INTERVALS 4096
 #endif
 
 /* Texel (x, y) of the level above as float linear values. */
 static inline float4 fetch(global const uint* texels, global const float4* src, int src_offset, int src_w,
-                           int x, int y, int srgb, global const float* decode)
+                           int x, int y, int srgb, global const float* decode, int from_texels)
 {
-#if FROM_TEXELS
-    const uint t = texels[src_offset + y * src_w + x];
-    global const float* c = decode + (srgb ? 0 : 256);
-    return (float4)(c[t & 0xffu], c[(t >> 8) & 0xffu], c[(t >> 16) & 0xffu], decode[256 + (t >> 24)]);
-#else
+    if (from_texels) {
+        const uint t = texels[src_offset + y * src_w + x];
+        global const float* c = decode + (srgb ? 0 : 256);
+        return (float4)(c[t & 0xffu], c[(t >> 8) & 0xffu], c[(t >> 16) & 0xffu], decode[256 + (t >> 24)]);
+    }
     return src[y * src_w + x];
-#endif
 }
 
 /* round(clip(x) * 255), in float as NumPy computes it. */
@@ -70,7 +66,7 @@ static inline uint encode4(float4 f, int srgb, global const float2* table)
 kernel void mip_level(global uint* texels, global const float4* src, int srgb, int src_offset, int src_w,
                       global float4* dst, int dst_offset, int dst_w, int dst_h, global const int4* taps,
                       int col_base, int row_base, int vertical_first, global const double* weights,
-                      global const float* decode, global const float2* encode)
+                      global const float* decode, global const float2* encode, int from_texels)
 {
     const int x = get_global_id(0), y = get_global_id(1);
     if (x >= dst_w || y >= dst_h) return;
@@ -81,7 +77,7 @@ kernel void mip_level(global uint* texels, global const float4* src, int srgb, i
         double4 h = (double4)(0.0);
         for (int i = 0; i < inner.y; i++) {
             const int sx = vertical_first ? outer.x + j : inner.x + i, sy = vertical_first ? inner.x + i : outer.x + j;
-            h += convert_double4(fetch(texels, src, src_offset, src_w, sx, sy, srgb, decode)) * weights[inner.z + i];
+            h += convert_double4(fetch(texels, src, src_offset, src_w, sx, sy, srgb, decode, from_texels)) * weights[inner.z + i];
         }
         v += convert_double4(convert_float4(h)) * weights[outer.z + j];
     }
@@ -92,15 +88,15 @@ kernel void mip_level(global uint* texels, global const float4* src, int srgb, i
 
 kernel void mip_half(global uint* texels, global const float4* src, int srgb, int src_offset, int src_w,
                      global float4* dst, int dst_offset, int dst_w, int dst_h, int nx, int ny, int vertical_first,
-                     global const float* decode, global const float2* encode)
+                     global const float* decode, global const float2* encode, int from_texels)
 {
     const int x = get_global_id(0), y = get_global_id(1);
     if (x >= dst_w || y >= dst_h) return;
     const int x0 = nx * x, y0 = ny * y, x1 = x0 + nx - 1, y1 = y0 + ny - 1;
-    const float4 a = fetch(texels, src, src_offset, src_w, x0, y0, srgb, decode);
-    const float4 b = fetch(texels, src, src_offset, src_w, x1, y0, srgb, decode);
-    const float4 c = fetch(texels, src, src_offset, src_w, x0, y1, srgb, decode);
-    const float4 d = fetch(texels, src, src_offset, src_w, x1, y1, srgb, decode);
+    const float4 a = fetch(texels, src, src_offset, src_w, x0, y0, srgb, decode, from_texels);
+    const float4 b = fetch(texels, src, src_offset, src_w, x1, y0, srgb, decode, from_texels);
+    const float4 c = fetch(texels, src, src_offset, src_w, x0, y1, srgb, decode, from_texels);
+    const float4 d = fetch(texels, src, src_offset, src_w, x1, y1, srgb, decode, from_texels);
     float4 f;
     if (vertical_first) {
         const float4 l = ny == 2 ? a * 0.5f + c * 0.5f : a, r = ny == 2 ? b * 0.5f + d * 0.5f : b;

@@ -1,8 +1,9 @@
 """Shared pytest configuration: OpenCL device selection and the renderer factory.
 
 --device NAME|all   which OpenCL devices the `device` fixture runs on (default: $CLRENDER_TEST_DEVICE,
-                    else `all` = every device except simulators such as Oclgrind, which only run
-                    when named). NAME is a case-insensitive substring of "platform / device" or "P:D".
+                    else the device a Renderer picks, clrender.device_probe.default_device_info;
+                    `all` = every device except simulators such as Oclgrind, which only run when
+                    named). NAME is a case-insensitive substring of "platform / device" or "P:D".
 
 OpenCL is touched only when a collected test actually uses `device` (directly or through
 `make_renderer`), so the pure-NumPy tests collect and run without it.
@@ -82,33 +83,34 @@ def pytest_addoption(parser):
     parser.addoption(
         "--device", action="store", default=None, metavar="NAME|all",
         help=f"OpenCL device(s) for device tests: 'all' (no simulators), or a case-insensitive substring "
-             f"of 'platform / device', or 'P:D'. Default: ${ENV_TEST_DEVICE}, else 'all'.")
+             f"of 'platform / device', or 'P:D'. Default: ${ENV_TEST_DEVICE}, else the default device.")
 
 
 def _device_spec(config) -> tuple[str, bool]:
-    """(spec, explicit): explicit when given by --device or the environment."""
+    """(spec, explicit): explicit when given by --device or the environment; else "default"."""
     spec = config.getoption("--device")
     if spec:
         return spec, True
     spec = os.environ.get(ENV_TEST_DEVICE, "").strip()
     if spec:
         return spec, True
-    return "all", False
+    return "default", False
 
 
 def _selected_devices(config):
-    """[(DeviceInfo, None)] or [(None, reason to skip)]; computed once per session."""
+    """[(DeviceInfo, None)] or [(None, reason to skip)]; computed once per session. "default": the
+    device a Renderer picks (only that one is probed); "all": every device but simulators."""
     cached = getattr(config, "_clrender_devices", None)
     if cached is not None:
         return cached
     spec, explicit = _device_spec(config)
     try:
-        from clrender.device import select_devices     # lazy: imports pyopencl
+        from clrender.device_probe import default_device_info, select_devices     # lazy: imports pyopencl
     except ImportError as exc:
         result = [(None, f"OpenCL unavailable ({exc})")]
     else:
         try:
-            devices = list(select_devices(spec))
+            devices = [default_device_info()] if spec == "default" else list(select_devices(spec))
         except Exception as exc:                        # no platform / no match
             if explicit and spec.lower() != "all":
                 raise pytest.UsageError(f"--device {spec!r}: {exc}") from None
@@ -163,3 +165,17 @@ def make_renderer(device):
         return cache[key]
 
     return factory
+
+
+def pytest_terminal_summary(terminalreporter):
+    """How many OpenCL programs this session built, by kernel file (docs/variants.md counts them)."""
+    import sys
+    device_module = sys.modules.get("clrender.device")
+    if device_module is None or not device_module.Device.build_count:
+        return
+    per_file: dict = {}
+    for spec in device_module.Device.session_specs():
+        per_file[spec.filename] = per_file.get(spec.filename, 0) + 1
+    files = ", ".join(f"{name} {n}" for name, n in sorted(per_file.items(), key=lambda kv: (-kv[1], kv[0])))
+    terminalreporter.write_line(f"clrender: {device_module.Device.build_count} OpenCL program builds "
+                                f"({sum(per_file.values())} distinct programs: {files})")

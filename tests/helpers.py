@@ -42,7 +42,10 @@ def assert_scene_error(path, words) -> str:
 
 def record_render_configs(monkeypatch) -> list:
     """Replace clrender.renderer.Renderer by a subclass that appends each new renderer's
-    RenderConfig to the returned list (what the CLI turned its flags and [render] table into)."""
+    RenderConfig to the returned list (what the CLI turned its flags and [render] table into). The
+    CLI's background warm-up renderer (clrender.warmup.prepare_in_background) is not counted."""
+    import threading
+
     from clrender import renderer as renderer_module
 
     seen = []
@@ -50,7 +53,8 @@ def record_render_configs(monkeypatch) -> list:
     class Recording(renderer_module.Renderer):
         def __init__(self, *args, **kwargs):
             super().__init__(*args, **kwargs)
-            seen.append(self.config)
+            if threading.current_thread().name != "clrender-prepare":
+                seen.append(self.config)
 
     monkeypatch.setattr(renderer_module, "Renderer", Recording)
     return seen

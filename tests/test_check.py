@@ -37,7 +37,7 @@ def test_compare_float_tolerances():
 def _compared_devices():
     """Every real device; with fewer than two, a real one and Oclgrind (a second implementation,
     slow: the callers keep their cases small); with fewer than two of those, skip (CI: fail)."""
-    from clrender.device import select_devices
+    from clrender.device_probe import select_devices
     devices = select_devices("all")
     if len(devices) < 2:
         devices = sorted(select_devices("all", simulators=True), key=lambda d: d.is_simulator)[:2]
@@ -62,7 +62,7 @@ def test_cli_check_exit_status_and_json(tmp_path, capsys, monkeypatch):
     devices = _compared_devices()
     scene = REPO / "scenes" / "demo.toml"
     args = ["check", "--device", "all", "--scene", str(scene), "--width", "16", "--height", "12", "-q"]
-    monkeypatch.setattr("clrender.device.select_devices", lambda spec=None, simulators=False: devices)
+    monkeypatch.setattr("clrender.device_probe.select_devices", lambda spec=None, simulators=False: devices)
     out = tmp_path / "report.json"
     assert cli.main(args + ["--json", str(out), "--min-devices", "2"]) == 0       # the devices agree
     report = json.loads(out.read_text())

@@ -145,6 +145,27 @@ def round_up(n: int, multiple: int) -> int:
     return (int(n) + multiple - 1) // multiple * multiple
 
 
+# Fixed work-group shapes for the kernels whose results do not depend on the shape (no local
+# memory, no barriers). PoCL compiles a kernel once per local size at its first launch with it;
+# a None local size lets PoCL pick one from the global size, so every new image size (or
+# triangle / light / tile count) would compile those kernels again (0.4-0.65 s each, cold).
+# 64 work-items is within every targeted device's limit (PoCL, NVIDIA, Oclgrind).
+WG_1D = 64
+WG_2D = (8, 8)
+
+
+def launch_1d(n: int, wg: int = WG_1D) -> tuple[tuple[int], tuple[int]]:
+    """(global, local) sizes of a 1-D launch over n work-items: the fixed local size `wg` and the
+    global size rounded up to it (at least one group). The kernel must return for ids >= n."""
+    return (round_up(max(int(n), 1), wg),), (wg,)
+
+
+def launch_2d(nx: int, ny: int, wg: tuple[int, int] = WG_2D) -> tuple[tuple[int, int], tuple[int, int]]:
+    """(global, local) sizes of a 2-D launch over nx × ny work-items: the fixed shape `wg` and each
+    global dimension rounded up to it. The kernel must return for ids outside nx × ny."""
+    return (round_up(max(int(nx), 1), wg[0]), round_up(max(int(ny), 1), wg[1])), tuple(wg)
+
+
 def scan_for(device):
     """The device's exclusive prefix sum with grand total (clrender/scan.py)."""
     from ..scan import prefix_sum_for

@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .base import Overflow, RenderPass, fill_zero, round_up, scan_for, zeros
+from .base import Overflow, RenderPass, fill_zero, launch_1d, round_up, scan_for, zeros
 
 # Initial tile-list room once the scene is known: min(2 per triangle, LIST_PER_TILE per tile).
 # Sponza's atrium (262k triangles, 1280x720, 8-pixel tiles) bins 293k entries, 1.1 per triangle
@@ -62,12 +62,12 @@ class BinningPass(RenderPass):
         fill_zero(self.tile_counts, self.queue)
         fill_zero(self.tile_cursor, self.queue)
         cap = res["prim_capacity"]
-        gsize = (round_up(cap, 64),)
+        gsize, lsize = launch_1d(cap)
         common = (res["prims"].data, res["prim_total"].data, np.int32(cap), np.int32(w), np.int32(h),
                   np.int32(self.tiles_x))
-        self.count_kernel(self.queue, gsize, None, *common, self.tile_counts.data)
+        self.count_kernel(self.queue, gsize, lsize, *common, self.tile_counts.data)
         self.scan(self.tile_counts, self.tile_offsets, self.total, queue=self.queue)
-        self.fill_kernel(self.queue, gsize, None, *common, self.tile_offsets.data, self.tile_cursor.data,
+        self.fill_kernel(self.queue, gsize, lsize, *common, self.tile_offsets.data, self.tile_cursor.data,
                          np.int32(self.list_capacity), self.tile_prims.data)
 
     def overflows(self):

@@ -19,7 +19,7 @@ import weakref
 
 import numpy as np
 
-from .base import RenderPass, empty, round_up
+from .base import RenderPass, empty, launch_1d
 
 CHUNK = 128          # triangles per chunk (chunk_cull.cl and setup.cl CHUNK; Sponza shadow setup: 128 < 256 < 64)
 CULL_WG = 64         # chunk_cull's single work-group
@@ -45,7 +45,7 @@ def chunk_bounds(device, positions, triangles, n_tris: int):
     bounds = empty(device.queue, 8 * c, np.float32)
     if c:
         kernel = device.kernel("chunk_cull.cl", "chunk_bounds", chunk_defines())
-        kernel(device.queue, (round_up(c, 64),), None, positions.data, triangles.data, np.int32(n_tris), bounds.data)
+        kernel(device.queue, *launch_1d(c), positions.data, triangles.data, np.int32(n_tris), bounds.data)
     _BOUNDS[device] = (positions, triangles, n_tris, bounds)
     return bounds
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .base import RenderPass, empty, round_up
+from .base import RenderPass, empty, launch_1d
 
 
 class CompositePass(RenderPass):
@@ -26,5 +26,5 @@ class CompositePass(RenderPass):
 
     def run(self, res):
         w, h = res["width"], res["height"]
-        self.kernel(self.queue, (round_up(w * h, 64),), None, self.opaque.data, res["layers"].data,
+        self.kernel(self.queue, *launch_1d(w * h), self.opaque.data, res["layers"].data,
                     np.int32(w), np.int32(h), self.color.data)

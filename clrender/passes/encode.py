@@ -7,7 +7,7 @@ import numpy as np
 
 from .. import capabilities
 from .. import gbuffer as layout
-from .base import RenderPass, empty, round_up
+from .base import RenderPass, empty, launch_1d
 
 
 class EncodePass(RenderPass):
@@ -28,5 +28,5 @@ class EncodePass(RenderPass):
 
     def run(self, res):
         npix = res["width"] * res["height"]
-        self.kernel(self.queue, (round_up(-(-npix // self.vec), 64),), None, res["ldr"].data, np.int32(npix),
+        self.kernel(self.queue, *launch_1d(-(-npix // self.vec)), res["ldr"].data, np.int32(npix),
                     res["srgb_encode"].data, self.image.data)

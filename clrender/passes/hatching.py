@@ -10,7 +10,7 @@ import numpy as np
 import pyopencl.array as cla
 
 from .. import capabilities, tam
-from .base import RenderPass, empty, round_up
+from .base import RenderPass, empty, launch_1d
 
 # One upload of the tonal art map per device (shared by that device's renderers).
 _TAM_ON_DEVICE: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
@@ -63,5 +63,5 @@ class HatchingPass(RenderPass):
     def run(self, res):
         w, h = self.size
         npix = w * h
-        self.kernel(self.queue, (round_up(-(-npix // self.vec), 64),), None, self.src.data, np.int32(w),
+        self.kernel(self.queue, *launch_1d(-(-npix // self.vec)), self.src.data, np.int32(w),
                     np.int32(npix), self.tam.data, *self.args, self.out.data)

@@ -5,7 +5,7 @@ import numpy as np
 
 from .. import capabilities
 from .. import gbuffer as layout
-from .base import Overflow, RenderPass, empty, round_up, scan_for, view_defines, zeros
+from .base import Overflow, RenderPass, empty, launch_1d, round_up, scan_for, view_defines, zeros
 
 
 class TileLightLists(RenderPass):
@@ -79,18 +79,18 @@ class LightCullPass(TileLightLists):
         n_lights = res["n_lights"]
         n_padded = round_up(max(n_lights, 1), self.vec)
         sx, sy, sz, sr = (s.data for s in self.spheres)
-        self.bounds_kernel(self.queue, (round_up(n_padded, 64),), None, res["lights"].data, np.int32(n_lights),
+        self.bounds_kernel(self.queue, *launch_1d(n_padded), res["lights"].data, np.int32(n_lights),
                            np.int32(n_padded), res["view_matrix"].data, sx, sy, sz, sr)
         n_tiles = self.tiles_x * self.tiles_y
-        gsize = (round_up(n_tiles, 64),)
+        gsize, lsize = launch_1d(n_tiles)
         fragments = "has_fragments" in res and res["has_fragments"]     # transparent fragments widen tiles
-        self.depth_kernel(self.queue, gsize, None, res["gbuffer"].data, np.int32(w), np.int32(h),
+        self.depth_kernel(self.queue, gsize, lsize, res["gbuffer"].data, np.int32(w), np.int32(h),
                           np.float32(res["far"]), np.int32(self.tiles_x), np.int32(self.tiles_y),
                           np.int32(fragments), (res["t_range"] if fragments else self.tile_depth).data,
                           self.tile_depth.data)
         cull = (sx, sy, sz, sr, np.int32(n_padded), self.tile_depth.data, np.int32(self.tiles_x),
                 np.int32(self.tiles_y), np.int32(w), np.int32(h), np.float32(res["tan_x"]), np.float32(res["tan_y"]))
-        self.count_kernel(self.queue, gsize, None, *cull, self.counts.data)
+        self.count_kernel(self.queue, gsize, lsize, *cull, self.counts.data)
         self.scan(self.counts, self.offsets, self.total, queue=self.queue)
-        self.fill_kernel(self.queue, gsize, None, *cull, self.offsets.data, np.int32(self.list_capacity),
+        self.fill_kernel(self.queue, gsize, lsize, *cull, self.offsets.data, np.int32(self.list_capacity),
                          self.lights_list.data)

@@ -8,7 +8,7 @@ import numpy as np
 
 from .. import capabilities
 from .. import gbuffer as layout
-from .base import empty, round_up, scan_for, view_defines, zeros
+from .base import empty, launch_1d, round_up, scan_for, view_defines, zeros
 from .light_cull import TileLightLists
 
 
@@ -52,19 +52,19 @@ class LightQuadsPass(TileLightLists):
         n_padded = round_up(max(n_lights, 1), self.vec)
         self.frame_padded = n_padded
         sx, sy, sz, sr = (s.data for s in self.spheres)
-        lsize = (round_up(n_padded, 64),)
-        self.bounds_kernel(self.queue, lsize, None, res["lights"].data, np.int32(n_lights), np.int32(n_padded),
+        light_grid = launch_1d(n_padded)
+        self.bounds_kernel(self.queue, *light_grid, res["lights"].data, np.int32(n_lights), np.int32(n_padded),
                            res["view_matrix"].data, sx, sy, sz, sr)
         eye_distance = float(np.linalg.norm(np.asarray(res["camera"].eye, np.float64)))
-        self.rect_kernel(self.queue, lsize, None, sx, sy, sz, sr, np.int32(n_padded), np.int32(w), np.int32(h),
+        self.rect_kernel(self.queue, *light_grid, sx, sy, sz, sr, np.int32(n_padded), np.int32(w), np.int32(h),
                          np.float32(res["tan_x"]), np.float32(res["tan_y"]), np.float32(res["near"]),
                          np.float32(res["far"]), np.float32(eye_distance), np.int32(self.tiles_x),
                          np.int32(self.tiles_y), self.quad_rect.data, self.quad_tiles.data)
         tiles = (self.quad_tiles.data, np.int32(n_padded), np.int32(self.tiles_x), np.int32(self.tiles_y))
-        gsize = (round_up(self.tiles_x * self.tiles_y, 64),)
-        self.count_kernel(self.queue, gsize, None, *tiles, self.counts.data)
+        tile_grid = launch_1d(self.tiles_x * self.tiles_y)
+        self.count_kernel(self.queue, *tile_grid, *tiles, self.counts.data)
         self.scan(self.counts, self.offsets, self.total, queue=self.queue)
-        self.fill_kernel(self.queue, gsize, None, *tiles, self.offsets.data, np.int32(self.list_capacity),
+        self.fill_kernel(self.queue, *tile_grid, *tiles, self.offsets.data, np.int32(self.list_capacity),
                          self.lights_list.data)
 
     def quad_rects(self, n_lights: int) -> np.ndarray:

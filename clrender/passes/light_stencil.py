@@ -8,7 +8,7 @@ import numpy as np
 
 from .. import capabilities
 from .. import gbuffer as layout
-from .base import Overflow, RenderPass, empty, fill_zero, view_defines, zeros
+from .base import Overflow, RenderPass, empty, fill_zero, launch_1d, view_defines, zeros
 
 INITIAL_WORDS = 1        # 32 lights per tile list before the first growth
 
@@ -48,7 +48,7 @@ class LightStencilPass(RenderPass):
         t = self.tile
         n_tiles = self.tiles_x * self.tiles_y
         fill_zero(self.needed, self.queue)
-        self.words_kernel(self.queue, (-(-n_tiles // 64) * 64,), None, res["tile_light_counts"].data,
+        self.words_kernel(self.queue, *launch_1d(n_tiles), res["tile_light_counts"].data,
                           np.int32(n_tiles), self.needed.data)
         self.kernel(self.queue, (self.tiles_x * t // self.vec, self.tiles_y * t), (t // self.vec, t),
                     res["gbuffer"].data, np.int32(res["width"]), np.int32(res["height"]), np.float32(res["far"]),

@@ -17,7 +17,7 @@ import numpy as np
 
 from .. import capabilities
 from .. import gbuffer as layout
-from .base import RenderPass, empty, round_up
+from .base import RenderPass, empty, launch_2d, round_up
 
 MAX_RADIUS = 32         # pixels: the longest half blur |V|, and the tile side
 MIN_LENGTH = 0.5        # pixels: shorter motion during the exposure is static
@@ -57,9 +57,9 @@ class MotionBlurPass(RenderPass):
         iw, ih = np.int32(w), np.int32(h)
         tx, ty = self.tiles
         gbuffer = res["gbuffer"].data
-        self.velocity_kernel(self.queue, (self.runs, ty), None, gbuffer, iw, ih, self.shutter, self.inv_len.data,
-                             self.partial.data)
-        self.neighbor_kernel(self.queue, (tx, ty), None, self.partial.data, iw, np.int32(tx), np.int32(ty),
+        self.velocity_kernel(self.queue, *launch_2d(self.runs, ty, (16, 4)), gbuffer, iw, ih, self.shutter,
+                             self.inv_len.data, self.partial.data)
+        self.neighbor_kernel(self.queue, *launch_2d(tx, ty), self.partial.data, iw, np.int32(tx), np.int32(ty),
                              self.neighbor.data)
         group = (4, 4) if self.vec > 1 else (16, 4)       # runs × rows
         self.gather_kernel(self.queue, (round_up(self.runs, group[0]), round_up(h, group[1])), group,

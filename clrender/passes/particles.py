@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .base import RenderPass, round_up
+from .base import RenderPass, launch_1d
 
 
 class ParticlesPass(RenderPass):
@@ -21,7 +21,7 @@ class ParticlesPass(RenderPass):
         for ps in res["particle_systems"]:
             if ps.count == 0:
                 continue
-            self.kernel(self.queue, (round_up(ps.count, 64),), None, res["lights"].data, np.int32(ps.first),
+            self.kernel(self.queue, *launch_1d(ps.count), res["lights"].data, np.int32(ps.first),
                         np.int32(ps.count), np.uint32(ps.seed), np.float32(res["time"]),
                         *(np.float32(v) for v in (*ps.lo, *ps.hi)), np.float32(ps.speed),
                         np.float32(ps.life_min), np.float32(ps.life_max), np.float32(ps.radius_min),

@@ -10,7 +10,7 @@ import numpy as np
 import pyopencl as cl
 
 from .. import structs
-from .base import Overflow, RenderPass, empty, fill_zero, round_up, scan_for, zeros
+from .base import Overflow, RenderPass, empty, fill_zero, launch_1d, round_up, scan_for, zeros
 from .chunk_cull import CHUNK, ChunkCullPass, chunk_defines, n_chunks
 
 
@@ -41,10 +41,7 @@ class SetupPass(RenderPass):
             defines = {**chunk_defines(ortho), "CHUNK_CULL": 1}
         self.count_kernel = device.kernel("setup.cl", "setup_count", defines)
         self.emit_kernel = device.kernel("setup.cl", "setup_emit", defines)
-        if self.cull is not None and self.count_kernel.get_work_group_info(
-                cl.kernel_work_group_info.WORK_GROUP_SIZE, device.cl_device) < CHUNK:
-            raise RuntimeError(f"setup.cl's chunk cull needs work-groups of {CHUNK} (one chunk) and "
-                               f"{device.name} allows fewer for setup_count: set RenderConfig chunk_cull=False")
+        self.checked_group = self.cull is None     # the chunk cull's work-group, checked once built
         self.scan = scan_for(device)
         self.n_tris = -1
         self.slots = 0
@@ -82,7 +79,17 @@ class SetupPass(RenderPass):
         res.buffers.update(prims=self.prims, prim_total=self.prim_total, tri_status=self.status)
         res.values["prim_capacity"] = self.capacity
 
+    def _check_group(self):
+        """The chunk cull runs one chunk per work-group: the built kernel must allow that many."""
+        if self.count_kernel.get_work_group_info(cl.kernel_work_group_info.WORK_GROUP_SIZE,
+                                                 self.device.cl_device) < CHUNK:
+            raise RuntimeError(f"setup.cl's chunk cull needs work-groups of {CHUNK} (one chunk) and "
+                               f"{self.device.name} allows fewer for setup_count: set RenderConfig chunk_cull=False")
+        self.checked_group = True
+
     def run(self, res):
+        if not self.checked_group:
+            self._check_group()
         n = self.n_tris
         if n == 0:
             fill_zero(self.prim_total, self.queue)
@@ -94,11 +101,11 @@ class SetupPass(RenderPass):
         if self.cull is not None:
             self._run_slots(res, common)
             return
-        gsize = (round_up(n, 64),)
-        self.count_kernel(self.queue, gsize, None, *common, self.prim_count.data, self.status.data,
+        gsize, lsize = launch_1d(n)
+        self.count_kernel(self.queue, gsize, lsize, *common, self.prim_count.data, self.status.data,
                           self.staged.data)
         self.scan(self.prim_count, self.prim_offset, self.prim_total, size=n, queue=self.queue)
-        self.emit_kernel(self.queue, gsize, None, *common, self.prim_offset.data, self.prim_count.data,
+        self.emit_kernel(self.queue, gsize, lsize, *common, self.prim_offset.data, self.prim_count.data,
                          self.staged.data, np.int32(self.capacity), self.prims.data)
 
     def _run_slots(self, res, common):
@@ -110,7 +117,7 @@ class SetupPass(RenderPass):
                           self.staged.data, c.chunk_list.data, c.chunk_count.data, c.chunk_status.data,
                           np.int32(self.write_status), self.prim_offset.data, self.chunk_prims.data)
         self.scan(self.chunk_prims, self.chunk_offset, self.prim_total, size=c.n_chunks, queue=self.queue)
-        self.emit_kernel(self.queue, (round_up(self.slots, 64),), None, *common, self.prim_offset.data,
+        self.emit_kernel(self.queue, *launch_1d(self.slots), *common, self.prim_offset.data,
                          self.prim_count.data, self.staged.data, np.int32(self.capacity), self.prims.data,
                          c.chunk_list.data, c.chunk_count.data, self.chunk_offset.data, np.int32(self.slots))
 

@@ -5,7 +5,7 @@ import numpy as np
 
 from .. import capabilities
 from .. import gbuffer as layout
-from .base import RenderPass, empty, round_up
+from .base import RenderPass, empty, launch_1d
 
 OPERATORS = {"clamp": 0, "reinhard": 1, "aces": 2}
 
@@ -33,5 +33,5 @@ class TonemapPass(RenderPass):
     def run(self, res):
         npix = res["width"] * res["height"]
         extra = () if self.ldr else (res["srgb_encode"].data,)
-        self.kernel(self.queue, (round_up(-(-npix // self.vec), 64),), None, res["color"].data, np.int32(npix),
+        self.kernel(self.queue, *launch_1d(-(-npix // self.vec)), res["color"].data, np.int32(npix),
                     np.float32(self.config.exposure), *extra, self.out.data)
