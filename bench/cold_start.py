@@ -10,7 +10,9 @@ and the exit), the programs built and the seconds of each (top 10; from the CLI'
 CLRENDER_LOG=debug), and the kernels PoCL compiled (files in its kernel cache).
 
 Configurations: "pip": only pip's PoCL visible (OCL_ICD_VENDORS at pyopencl's bundled ICD folder);
-"all": every installed implementation (e.g. Debian's PoCL beside pip's), as CI has them.
+"all": every installed implementation (e.g. Debian's PoCL beside pip's), as CI has them;
+"noprobe": "all" with the device probe skipped (the probe child's own switch), for the probe's net
+cost: its cold demo time minus this one's.
 Targets (issue 23): demo cold <= 15 s, Sponza cold <= 30 s, no silence > 5 s, demo warm <= 1.5 s,
 Sponza warm <= 3 s; with Debian's PoCL installed the cold numbers must not double.
 """
@@ -82,6 +84,8 @@ def measure(config: str, scene: Path, size: list[str], warm_runs: int, label: st
     env.pop("CLRENDER_DEVICE", None)
     if config == "pip":
         env["OCL_ICD_VENDORS"] = pip_icd_folder()
+    if config == "noprobe":
+        env["CLRENDER_PROBE_CHILD"] = "1"
     out = tmp / "out.png"
     try:
         cold = run_cli(["render", str(scene), "-o", str(out), *size], env)
@@ -104,7 +108,7 @@ def measure(config: str, scene: Path, size: list[str], warm_runs: int, label: st
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--configs", default="pip,all", help="comma-separated: pip, all")
+    ap.add_argument("--configs", default="all,noprobe,pip", help="comma-separated: all, noprobe, pip")
     ap.add_argument("--warm-runs", type=int, default=3)
     ap.add_argument("--no-sponza", action="store_true")
     args = ap.parse_args(argv)
@@ -112,6 +116,9 @@ def main(argv=None) -> int:
     for config in args.configs.split(","):
         print(f"{config}:", flush=True)
         result = {"demo": measure(config, REPO / "scenes" / "demo.toml", [], args.warm_runs, "demo")}
+        if config == "noprobe":
+            record["configs"][config] = result
+            continue
         if not args.no_sponza and SPONZA.is_file():
             result["sponza"] = measure(config, SPONZA, ["--width", "1280", "--height", "720"], args.warm_runs,
                                        "sponza")

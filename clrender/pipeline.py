@@ -117,6 +117,7 @@ class Pipeline:
         self._pending = None
         self._totals = None           # the overflow totals gathered for one read
         self._launched: set = set()   # passes launched at least once (their kernels compiled)
+        self._built: set = set()      # passes whose programs are all built
 
     def _lighting_passes(self, device, config) -> list:
         """From the light lists to the colour (docs/variants.md). deferred: shading from the
@@ -361,8 +362,10 @@ class Pipeline:
         runs, built up front (count and ETA), then each pass's first launch (where PoCL compiles
         its kernels). None (no stage) when everything is built: a warm pipeline reports nothing."""
         running = [p for p in self.passes if (transparent or p not in self.transparency)
-                   and not (p.name == "particles" and not res["particle_systems"])]
+                   and not (p.name == "particles" and not res["particle_systems"]) and p not in self._built]
         specs = [k.spec for p in running for k in lazy_kernels(p) if not k.built]
+        # Remembered once built (programs are never unbuilt); the shadow pass makes stages later.
+        self._built.update(p for p in running if p.name != "shadow" and all(k.built for k in lazy_kernels(p)))
         if not specs:
             return nullcontext()
 

@@ -18,7 +18,6 @@ MB = 2**20
 def folder(tmp_path, monkeypatch):
     monkeypatch.setenv(cache.ENV_CACHE_DIR, str(tmp_path / "cache"))
     monkeypatch.delenv(cache.ENV_CACHE_MAX_MB, raising=False)
-    monkeypatch.setattr(cache, "_last_prune", -1e9)
     cache._reset_for_tests()
     yield tmp_path / "cache"
     cache._reset_for_tests()
@@ -93,12 +92,36 @@ def test_pocl_3_1_layout_counts(folder):
 
 
 def test_a_write_past_the_cap_prunes(folder, monkeypatch):
+    walks = []
+    real_prune = cache.prune
+    monkeypatch.setattr(cache, "prune", lambda *a: walks.append(1) or real_prune(*a))
     monkeypatch.setenv(cache.ENV_CACHE_MAX_MB, "1")
-    cache.write_bytes("programs/a.bin", b"x" * (700 * 1024))
-    _age(folder / "programs" / "a.bin", 100)
-    monkeypatch.setattr(cache, "_last_prune", -1e9)
-    cache.write_bytes("programs/b.bin", b"x" * (700 * 1024))
-    assert sorted(p.name for p in (folder / "programs").iterdir()) == ["b.bin"]
+    cache.write_bytes("programs/a.bin", b"x" * (300 * 1024))           # a process's first write walks
+    cache.write_bytes("programs/b.bin", b"x" * (300 * 1024))           # under the cap: no walk
+    assert len(walks) == 1
+    _age(folder / "programs" / "a.bin", 200)
+    _age(folder / "programs" / "b.bin", 100)
+    cache.write_bytes("programs/c.bin", b"x" * (500 * 1024))           # past the cap: walks, a.bin goes
+    assert len(walks) == 2
+    assert sorted(p.name for p in (folder / "programs").iterdir()) == ["b.bin", "c.bin"]
+
+
+def test_names_and_symlinks_never_lead_out_of_the_folder(folder, tmp_path):
+    outside = tmp_path / "outside"
+    (outside / "dir").mkdir(parents=True)
+    (outside / "keep.bin").write_bytes(b"k" * 1000)
+    (outside / "dir" / "keep.so").write_bytes(b"k" * 1000)
+    assert not cache.write_bytes("../escape.bin", b"x") and not (tmp_path / "escape.bin").exists()
+    assert cache.read_bytes("../outside/keep.bin") is None
+    cache.write_bytes("programs/a.bin", b"x")
+    (folder / "programs" / "link.bin").symlink_to(outside / "keep.bin")
+    (folder / "pocl" / "kcache" / "AB").mkdir(parents=True)
+    (folder / "pocl" / "kcache" / "AB" / "link").symlink_to(outside / "dir")
+    assert cache.read_bytes("programs/link.bin") is None
+    assert cache.info()["entries"] == 1                                # the links are not entries
+    cache.prune(0)
+    cache.clear()
+    assert (outside / "keep.bin").stat().st_size == 1000 and (outside / "dir" / "keep.so").exists()
 
 
 def test_cap_zero_means_no_cache(folder, monkeypatch):
@@ -154,3 +177,20 @@ def test_cli_cache_info_and_clear(folder, capsys):
     assert str(folder) in text and "programs" in text
     assert cli.main(["cache", "clear"]) == 0
     assert "freed" in capsys.readouterr().out and cache.info()["entries"] == 0
+
+
+def test_pocls_part_is_pruned_at_process_start_at_most_hourly(folder, monkeypatch):
+    """PoCL fills pocl/ without clrender writing anything: configure_pocl_cache prunes it, once an hour."""
+    unit = folder / "pocl" / "AB" / "old"
+    unit.mkdir(parents=True)
+    (unit / "k.so").write_bytes(b"x" * (600 * 1024))
+    _age(unit / "k.so", 100)
+    monkeypatch.setenv(cache.ENV_CACHE_MAX_MB, "0.5")
+    monkeypatch.delenv("POCL_CACHE_DIR", raising=False)
+    cache.configure_pocl_cache()
+    assert not unit.exists() and (folder / ".last-prune").exists()
+    unit.mkdir(parents=True)
+    (unit / "k.so").write_bytes(b"x" * (600 * 1024))
+    monkeypatch.delenv("POCL_CACHE_DIR", raising=False)
+    cache.configure_pocl_cache()                      # within the hour: no walk, nothing removed
+    assert unit.exists()
