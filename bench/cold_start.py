@@ -7,7 +7,8 @@ temporary folder) and times, as whole processes, in one run: the demo CLI cold t
 (medians of --warm-runs), Sponza at 1280x720 cold (fresh caches again) then warm. For every cold
 run it records the longest silence on stderr (the time between two writes, counting the start
 and the exit), the programs built and the seconds of each (top 10; from the CLI's debug log,
-CLRENDER_LOG=debug), and the kernels PoCL compiled (files in its kernel cache).
+CLRENDER_LOG=debug), in the process and in its device probe's child (where a cold run compiles),
+and the kernels PoCL compiled (files in its kernel cache).
 
 Configurations: "pip": only pip's PoCL visible (OCL_ICD_VENDORS at pyopencl's bundled ICD folder);
 "all": every installed implementation (e.g. Debian's PoCL beside pip's), as CI has them;
@@ -66,10 +67,17 @@ def run_cli(args: list[str], env: dict, timeout: float = 1800) -> dict:
     end = time.perf_counter()
     longest = max(longest, end - last)
     text = b"".join(chunks).decode(errors="replace")
-    builds = sorted(((m.group(1), float(m.group(2))) for m in BUILT.finditer(text)), key=lambda b: -b[1])
+    builds, probe_builds = [], []
+    for line in text.splitlines():
+        m = BUILT.search(line)
+        if m:
+            (probe_builds if "(probe child)" in line else builds).append((m.group(1), float(m.group(2))))
+    builds.sort(key=lambda b: -b[1])
+    probe_builds.sort(key=lambda b: -b[1])
     errors = [ln for ln in text.splitlines() if "error" in ln.lower()]
     return {"seconds": end - start, "rc": proc.returncode, "longest_silence_s": longest,
             "programs_built": len(builds), "build_seconds_top10": builds[:10],
+            "probe_programs_built": len(probe_builds), "probe_build_seconds_top10": probe_builds[:10],
             "error": errors[-1][:300] if proc.returncode else None}
 
 
@@ -91,7 +99,9 @@ def measure(config: str, scene: Path, size: list[str], warm_runs: int, label: st
         cold = run_cli(["render", str(scene), "-o", str(out), *size], env)
         cold["pocl_kernels_compiled"] = pocl_kernels(tmp / "pocl")
         print(f"  {config} {label} cold: {cold['seconds']:.1f} s (exit {cold['rc']}), longest silence "
-              f"{cold['longest_silence_s']:.1f} s, {cold['programs_built']} programs, "
+              f"{cold['longest_silence_s']:.1f} s, {cold['programs_built']} programs "
+              f"(+{cold['probe_programs_built']} in the probe, slowest "
+              f"{', '.join('%s %.2f s' % (n.split(' ')[0], t) for n, t in cold['probe_build_seconds_top10'][:3])}), "
               f"{cold['pocl_kernels_compiled']} PoCL kernels" + (f"; {cold['error']}" if cold["error"] else ""),
               flush=True)
         warm = []

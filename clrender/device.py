@@ -263,6 +263,7 @@ class Device:
         Device.build_count += 1
         self.built.append((spec, time.perf_counter() - start))
         progress.log.debug("built %s in %.2f s on %s", spec, self.built[-1][1], self.name)
+        progress.emit(f"built {spec} in {self.built[-1][1]:.2f} s")
         stage.advance(str(spec))
         return prog
 

@@ -68,7 +68,12 @@ def _ask_child(info: DeviceInfo) -> Optional[str]:
     env[ENV_IN_PROBE] = "1"
     proc = subprocess.Popen([sys.executable, "-m", "clrender.probe_child", info.id, info.name], env=env,
                             stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
-    timer = threading.Timer(PROBE_TIMEOUT_S, proc.kill)
+    timed_out = threading.Event()
+
+    def kill():
+        timed_out.set()
+        proc.kill()
+    timer = threading.Timer(PROBE_TIMEOUT_S, kill)
     timer.start()
     lines = []
     try:
@@ -80,16 +85,16 @@ def _ask_child(info: DeviceInfo) -> Optional[str]:
                     stage.advance(line[len("progress "):])
                 elif line.startswith("total "):
                     pass                  # the child's own stages' totals: this one counts what it did
+                elif line.startswith("built "):
+                    progress.log.debug("%s on %s (probe child)", line, info.label)
                 elif line:
                     lines.append(line)
         proc.wait()
     finally:
-        timed_out = not timer.is_alive() and proc.returncode is not None and proc.returncode < 0 \
-            and not lines
         timer.cancel()
     if proc.returncode == 0 and lines and lines[-1] == "ok":
         return None
-    if timed_out:
+    if timed_out.is_set():
         return f"clrender's kernels did not build and run within {PROBE_TIMEOUT_S} s"
     why = lines[-1] if lines else ""
     if proc.returncode < 0 and not why:

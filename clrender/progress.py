@@ -42,6 +42,11 @@ def report_lines(stream) -> None:
     _lines = stream
 
 
+def emit(text: str) -> None:
+    """A fact for the parent of a line-reporting process (e.g. a build and its seconds)."""
+    _line(text)
+
+
 def _line(text: str) -> None:
     if _lines is not None:
         _lines.write(text + "\n")
