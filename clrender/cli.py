@@ -325,20 +325,6 @@ def cmd_devices(args) -> int:
     return 0
 
 
-def cmd_warmup(args) -> int:
-    """Build and first-launch the kernels now (Docker images, cluster workers): later runs start warm."""
-    from .warmup import warm_up
-    result = warm_up(args.device, everything=args.all)
-    _note(args, f"{PROG}: warmed up {result['device']}: {result['programs']} program(s) built in "
-                f"{result['seconds']:.1f} s; cached in {_cache_folder()}")
-    return 0
-
-
-def _cache_folder() -> str:
-    from .cache import cache_dir
-    return str(cache_dir())
-
-
 def cmd_check(args) -> int:
     from .check import run_check
     for s in args.scene:
@@ -468,9 +454,9 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
         args = build_parser().parse_args(_join_vector_options(argv))
         _one_line_warnings(getattr(args, "quiet", False))
         progress.show_bars(not getattr(args, "quiet", False))    # first-run builds: a bar, not silence
-        from . import cli_cache
+        from . import cli_setup
         commands = {"render": cmd_render, "devices": cmd_devices, "check": cmd_check, "info": cmd_info,
-                    "warmup": cmd_warmup, "cache": cli_cache.run}
+                    "warmup": cli_setup.run_warmup, "cache": cli_setup.run_cache}
         return int(commands[args.command](args) or 0)
     except SystemExit as exc:                    # --help / --version
         return exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 1)

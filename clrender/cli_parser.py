@@ -246,16 +246,8 @@ def build_parser() -> argparse.ArgumentParser:
     d.add_argument("--require", action="append", default=[], metavar="NAME",
                    help="fail unless a device matching NAME runs clrender's kernels (repeatable; CI)")
 
-    from . import cli_cache
-    cli_cache.add_parser(sub)
-
-    w = sub.add_parser("warmup", help="build clrender's OpenCL kernels now, so later runs start warm",
-                       description="Build and first-launch the kernels the default Renderer uses on typical "
-                                   "scenes (--all: every kernel file and Renderer variant) on one device, "
-                                   "filling the caches (for Docker images and cluster workers).")
-    w.add_argument("--device", default=None, metavar="NAME", help="the device (default: the one render picks)")
-    w.add_argument("--all", action="store_true", help="every kernel file and Renderer variant, not only the defaults")
-    w.add_argument("-q", "--quiet", action="store_true", help="no progress or notes on stderr")
+    from . import cli_setup
+    cli_setup.add_parsers(sub)          # warmup, cache
 
     c = sub.add_parser("check", help="render fixed cases on several devices and compare every AOV")
     c.add_argument("--device", default="all", metavar="NAME|all",

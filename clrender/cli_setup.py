@@ -1,5 +1,6 @@
-"""`clrender cache info [--json]` and `clrender cache clear`: what clrender keeps on disk (compiled
-programs, PoCL's kernel cache, device probe answers; clrender/cache.py) and how to empty it."""
+"""The set-up commands: `clrender warmup [--device D] [--all]` compiles now what later runs use
+(clrender/warmup.py), and `clrender cache info [--json] | clear` shows and empties what clrender
+keeps on disk (compiled programs, PoCL's kernel cache, device probe answers; clrender/cache.py)."""
 from __future__ import annotations
 
 import json
@@ -7,7 +8,15 @@ import json
 from . import cache
 
 
-def add_parser(sub) -> None:
+def add_parsers(sub) -> None:
+    w = sub.add_parser("warmup", help="build clrender's OpenCL kernels now, so later runs start warm",
+                       description="Build and first-launch the kernels the default Renderer uses on typical "
+                                   "scenes (--all: every kernel file and Renderer variant) on one device, "
+                                   "filling the caches (for Docker images and cluster workers).")
+    w.add_argument("--device", default=None, metavar="NAME", help="the device (default: the one render picks)")
+    w.add_argument("--all", action="store_true", help="every kernel file and Renderer variant, not only the defaults")
+    w.add_argument("-q", "--quiet", action="store_true", help="no progress or notes on stderr")
+
     c = sub.add_parser("cache", help="show or clear clrender's on-disk cache (compiled kernels, probes)",
                        description="clrender keeps compiled kernels and device probe answers in "
                                    f"${cache.ENV_CACHE_DIR} (default ~/.cache/clrender), capped at "
@@ -22,7 +31,19 @@ def _mb(n: int) -> str:
     return f"{n / 2**20:.1f} MB"
 
 
-def run(args) -> int:
+def run_warmup(args) -> int:
+    """Build and first-launch the kernels now (Docker images, cluster workers): later runs start warm."""
+    import sys
+
+    from .warmup import warm_up
+    result = warm_up(args.device, everything=args.all)
+    if not args.quiet:
+        print(f"clrender: warmed up {result['device']}: {result['programs']} program(s) built in "
+              f"{result['seconds']:.1f} s; cached in {cache.cache_dir()}", file=sys.stderr, flush=True)
+    return 0
+
+
+def run_cache(args) -> int:
     if args.cache_action == "clear":
         freed = cache.clear()
         print(f"cleared {cache.cache_dir()}: {_mb(freed)} freed")
