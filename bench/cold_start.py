@@ -36,6 +36,7 @@ from bench.common import REPO, SPONZA, write_record
 TARGETS = {"demo_cold_s": 15.0, "sponza_cold_s": 30.0, "longest_silence_s": 5.0, "demo_warm_s": 1.5,
            "sponza_warm_s": 3.0}
 BUILT = re.compile(r"built (\S+.*?) in ([\d.]+) s")
+FRAME = re.compile(r"\] \S+ -> \S+ \(([\d.]+) ms")      # the CLI's "[1/1] scene -> image (N ms, ..." line
 
 
 def pip_icd_folder() -> str:
@@ -75,9 +76,11 @@ def run_cli(args: list[str], env: dict, timeout: float = 1800) -> dict:
     builds.sort(key=lambda b: -b[1])
     probe_builds.sort(key=lambda b: -b[1])
     errors = [ln for ln in text.splitlines() if "error" in ln.lower()]
+    frame = FRAME.search(text)
     return {"seconds": end - start, "rc": proc.returncode, "longest_silence_s": longest,
             "programs_built": len(builds), "build_seconds_top10": builds[:10],
             "probe_programs_built": len(probe_builds), "probe_build_seconds_top10": probe_builds[:10],
+            "first_frame_ms": float(frame.group(1)) if frame else None,
             "error": errors[-1][:300] if proc.returncode else None}
 
 
@@ -98,7 +101,8 @@ def measure(config: str, scene: Path, size: list[str], warm_runs: int, label: st
     try:
         cold = run_cli(["render", str(scene), "-o", str(out), *size], env)
         cold["pocl_kernels_compiled"] = pocl_kernels(tmp / "pocl")
-        print(f"  {config} {label} cold: {cold['seconds']:.1f} s (exit {cold['rc']}), longest silence "
+        print(f"  {config} {label} cold: {cold['seconds']:.1f} s (exit {cold['rc']}; first frame "
+              f"{cold['first_frame_ms'] or 0:.0f} ms), longest silence "
               f"{cold['longest_silence_s']:.1f} s, {cold['programs_built']} programs "
               f"(+{cold['probe_programs_built']} in the probe, slowest "
               f"{', '.join('%s %.2f s' % (n.split(' ')[0], t) for n, t in cold['probe_build_seconds_top10'][:3])}), "

@@ -481,8 +481,16 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
 
 
 def run() -> None:
-    """The `clrender` program (console script and `python -m clrender`): main(), then exit."""
-    sys.exit(main())
+    """The `clrender` program (console script and `python -m clrender`): main(), then exit. Nothing
+    is left to do once main() returns (outputs renamed into place, clusters closed), and the OpenCL
+    driver's teardown of every program and context cost 0.25-0.3 s of a 1.6 s warm demo run: the
+    process exits without it, once its streams and logs are flushed."""
+    code = main()
+    import logging
+    logging.shutdown()
+    sys.stdout.flush()
+    sys.stderr.flush()
+    os._exit(code)
 
 
 if __name__ == "__main__":
