@@ -139,26 +139,6 @@ def _scene(path: str):
     return cached[1]
 
 
-def worker_device_spec(explicit: Optional[str] = None) -> Optional[str]:
-    """The device spec of this process: explicit, else $CLRENDER_DEVICE, else the first GPU when
-    running in a Dask worker with a `GPU` resource, else None (the default device)."""
-    if explicit:
-        return explicit
-    if os.environ.get("CLRENDER_DEVICE"):
-        return os.environ["CLRENDER_DEVICE"]
-    try:
-        from distributed import get_worker
-        resources = get_worker().state.total_resources
-    except (ImportError, ValueError, AttributeError):
-        return None
-    if resources.get("GPU", 0) > 0:
-        from . import capabilities
-        from .device import list_devices
-        gpus = [d for d in list_devices() if capabilities.is_gpu(d.cl_device)]
-        return gpus[0].id if gpus else None
-    return None
-
-
 def _renderer(device_spec, width: int, height: int, config):
     from .device_probe import default_device_info
     from .renderer import Renderer
@@ -184,6 +164,7 @@ def render_task(task: FrameTask) -> dict:
         if previous is not None:
             previous = with_overrides(previous, bounds, o.eye, o.target, o.fov, o.ortho)
     width, height = scene_size(scene, task.width, task.height)
+    from .device_probe import worker_device_spec
     renderer = _renderer(worker_device_spec(task.device), width, height, scene_config(scene, dict(task.options)))
     render_start = _time.perf_counter()
     frame = renderer.render(scene, camera, previous_camera=previous, time=task.time)

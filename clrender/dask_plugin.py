@@ -16,8 +16,7 @@ class WarmupPlugin(WorkerPlugin):
         self.device, self.options = device, dict(options or {})
 
     async def setup(self, worker):
-        from .batch import worker_device_spec
-        from .device_probe import default_device_info
+        from .device_probe import default_device_info, worker_device_spec
         from .warmup import render_probe_scene
 
         def warm():

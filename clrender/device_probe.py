@@ -163,6 +163,25 @@ def default_device_info(spec: Optional[str | DeviceInfo] = None) -> DeviceInfo:
     raise DeviceError("no OpenCL device runs clrender's kernels (" + "; ".join(errors) + ")")
 
 
+def worker_device_spec(explicit: Optional[str] = None) -> Optional[str]:
+    """The device spec of this process: explicit, else $CLRENDER_DEVICE, else the first GPU when
+    running in a Dask worker with a `GPU` resource, else None (the default device)."""
+    if explicit:
+        return explicit
+    if os.environ.get(ENV_DEVICE):
+        return os.environ[ENV_DEVICE]
+    try:
+        from distributed import get_worker
+        resources = get_worker().state.total_resources
+    except (ImportError, ValueError, AttributeError):
+        return None
+    if resources.get("GPU", 0) > 0:
+        from . import capabilities
+        gpus = [d for d in list_devices() if capabilities.is_gpu(d.cl_device)]
+        return gpus[0].id if gpus else None
+    return None
+
+
 def open_device(spec: Optional[str | DeviceInfo] = None) -> Device:
     """The probed Device for `spec` (see default_device_info)."""
     return Device.get(default_device_info(spec))

@@ -11,7 +11,6 @@ shapes do not depend on it). `warm_up()` renders what the default Renderer runs 
 from __future__ import annotations
 
 import time
-from typing import Optional
 
 import numpy as np
 
