@@ -22,7 +22,7 @@ class TonemapPass(RenderPass):
         self.outputs = ("ldr",) if ldr else ("image",)
         self.vec = capabilities.pixel_vector_width(device.cl_device)
         self.kernel = device.kernel("tonemap.cl", "tonemap_ldr" if ldr else "tonemap_image",
-                                    {**layout.kernel_defines(), "VEC": self.vec, "TONEMAP": OPERATORS[config.tonemap]})
+                                    {**layout.kernel_defines(), "VEC": self.vec})
 
     def allocate(self, width, height):
         self.out = empty(self.queue, (3 if self.ldr else 1) * width * height, np.float32 if self.ldr else np.uint32)
@@ -34,4 +34,5 @@ class TonemapPass(RenderPass):
         npix = res["width"] * res["height"]
         extra = () if self.ldr else (res["srgb_encode"].data,)
         self.kernel(self.queue, *launch_1d(-(-npix // self.vec)), res["color"].data, np.int32(npix),
-                    np.float32(self.config.exposure), *extra, self.out.data)
+                    np.float32(self.config.exposure), np.int32(OPERATORS[self.config.tonemap]), *extra,
+                    self.out.data)
