@@ -31,10 +31,6 @@ def show_bars(enabled: bool) -> None:
     _bars = bool(enabled)
 
 
-def bars_shown() -> bool:
-    return _bars
-
-
 def report_lines(stream) -> None:
     """Also write each stage's total and items as lines to `stream` (the probe child reports to its
     parent this way: clrender/device_probe.py)."""
@@ -85,9 +81,6 @@ class Stage:
             if self._shown():
                 self.bar.refresh()
 
-    def set_total(self, n: int) -> None:
-        self.add_total(n - (self.total or 0))
-
     def advance(self, item: str = "", n: int = 1) -> None:
         self.done += n
         log.debug("%s: %s (%d%s)", self.what, item, self.done, f"/{self.total}" if self.total else "")
@@ -120,7 +113,7 @@ class Stage:
 
 def _short(item: str) -> str:
     """The bar names a program by its file (its -D defines are in the debug log)."""
-    return item.split(" ", 1)[0] if item.endswith(tuple("0123456789f")) and ".cl " in item else item
+    return item.split(" ", 1)[0] if ".cl " in item else item
 
 
 @contextmanager
