@@ -16,6 +16,7 @@ import os
 import re
 import threading
 import time
+from contextlib import nullcontext
 from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
@@ -226,10 +227,8 @@ class Device:
     def has_program(self, spec: ProgramSpec) -> bool:
         return self._key(spec)[0] in Device._programs
 
-    def program(self, filename: str, defines: Optional[dict] = None, options: Sequence[str] = ()) -> cl.Program:
+    def program(self, filename: str, defines: Optional[dict] = None) -> cl.Program:
         """Build (once) kernels/<filename> with -D defines."""
-        if options:
-            raise ValueError("extra build options go through defines (the cache key is the ProgramSpec)")
         return self.program_for(ProgramSpec.of(filename, defines))
 
     def program_for(self, spec: ProgramSpec) -> cl.Program:
@@ -276,12 +275,9 @@ class Device:
         stage = progress.current()
         if stage is not None:
             stage.add_total(len(todo))
+        with nullcontext() if stage is not None else progress.stage(what, len(todo), self.name):
             for spec in todo:
                 self.program_for(spec)
-        else:
-            with progress.stage(what, len(todo), self.name):
-                for spec in todo:
-                    self.program_for(spec)
         return len(todo)
 
     # Program binaries. PoCL's clBuildProgram makes only LLVM IR and compiles each kernel at its first

@@ -360,18 +360,20 @@ class Pipeline:
     def _first_use_stage(self, res, transparent):
         """A progress stage for a frame that builds programs: the programs of the passes this frame
         runs, built up front (count and ETA), then each pass's first launch (where PoCL compiles
-        its kernels). None (no stage) when everything is built: a warm pipeline reports nothing."""
-        running = [p for p in self.passes if (transparent or p not in self.transparency)
+        its kernels). None (no stage) when everything is built: a warm pipeline reports nothing. The
+        shadow pass makes its map stages on the way (publish): its programs are built in the loop, or
+        by their first launch, and never walked here, so a warm frame walks nothing."""
+        running = [p for p in self.passes if (transparent or p not in self.transparency) and p.name != "shadow"
                    and not (p.name == "particles" and not res["particle_systems"]) and p not in self._built]
-        specs = [k.spec for p in running for k in lazy_kernels(p) if not k.built]
-        # Remembered once built (programs are never unbuilt); the shadow pass makes stages later.
-        self._built.update(p for p in running if p.name != "shadow" and all(k.built for k in lazy_kernels(p)))
+        unbuilt = {p: [k.spec for k in lazy_kernels(p) if not k.built] for p in running}
+        self._built.update(p for p, specs in unbuilt.items() if not specs)    # programs are never unbuilt
+        specs = [s for p_specs in unbuilt.values() for s in p_specs]
         if not specs:
             return nullcontext()
 
         @contextmanager
         def stage():
-            first = [p for p in running if p not in self._launched and p.name != "shadow"]
+            first = [p for p in running if p not in self._launched]
             with progress.stage("building OpenCL programs", len(first), self.device.name) as s:
                 self.device.build(specs)
                 yield s

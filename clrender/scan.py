@@ -24,8 +24,6 @@ class PrefixSum:
         defines = {"SCAN_WG": self.work_group, "SCAN_ITEMS": items}
         self.scan_blocks = device.kernel("scan.cl", "scan_blocks", defines)
         self.add_offsets = device.kernel("scan.cl", "scan_add_offsets", defines)
-        from .passes.base import launch_1d     # (passes.base imports this module)
-        self._launch_1d = launch_1d
         self.context = device.context
         self._scratch: list[tuple[cl.Buffer, cl.Buffer, int]] = []   # per level: sums, offsets, capacity
 
@@ -49,7 +47,8 @@ class PrefixSum:
         self.scan_blocks(queue, (n_blocks * self.work_group,), (self.work_group,), counts, np.int32(n),
                          offsets, sums)
         self._scan(queue, level + 1, sums, n_blocks, sum_offsets, total)
-        self.add_offsets(queue, *self._launch_1d(n), offsets, np.int32(n), sum_offsets)
+        # a fixed local size: PoCL compiles per local size (passes/base.py launch_1d)
+        self.add_offsets(queue, (-(-n // 64) * 64,), (64,), offsets, np.int32(n), sum_offsets)
 
     def _level(self, level, n_blocks):
         if level == len(self._scratch) or self._scratch[level][2] < n_blocks:
