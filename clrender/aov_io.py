@@ -35,7 +35,7 @@ from typing import Callable, Sequence
 
 import numpy as np
 
-INT_AOVS = ("triangle_id", "fragment_count", "edges")     # integer AOVs: not in the EXR
+INT_AOVS = ("triangle_id", "fragment_count", "edges", "shading_model")     # integer AOVs: not in the EXR
 BIT_DEPTHS = (8, 16)
 VIDEO_SUFFIXES = (".mp4", ".gif")
 # EXR channel names per AOV (an AOV with one channel is named by itself: "ao", "light_count").
@@ -312,14 +312,17 @@ def preview(name: str, data: np.ndarray, background: np.ndarray) -> np.ndarray:
         out = _u8(data * 0.5 + 0.5)
         out[background] = 0
         return out
-    if name in ("albedo", "emissive"):     # linear [0, 1] colours (emissive before its strength)
+    if name in ("albedo", "emissive", "base_color"):     # linear [0, 1] colours (emissive before its strength)
         return linear_to_srgb8(data)
-    if name in ("specular_intensity", "ao", "transmittance", "occlusion"):   # [0, 1] as grey; white = unoccluded / clear
+    if name in ("specular_intensity", "ao", "transmittance", "occlusion", "metallic", "roughness"):
+        # [0, 1] as grey; white = unoccluded / clear / metal / rough
         return _u8(data)
     if name == "specular_power":
         return _u8(np.log2(np.maximum(data, 1.0)) / SPEC_POWER_LOG2_MAX)
     if name == "triangle_id":
         return _preview_ids(data)
+    if name == "shading_model":            # black background, grey Blinn-Phong, white glTF BRDF
+        return np.array([0, 96, 255], np.uint8)[np.clip(data.astype(np.int64) + 1, 0, 2)][..., None].repeat(3, -1)
     if name == "velocity":
         return _preview_velocity(data)
     if name == "color":                    # linear HDR: Reinhard, as the default image

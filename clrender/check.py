@@ -42,6 +42,10 @@ TOLERANCES = {
     "specular_power": ("rel", 0.031),  # log2 in 8 bits: one code is a factor 2^(11/255)
     "emissive": ("abs", 1e-2),         # 8-bit sRGB: one code near white
     "occlusion": ("abs", 1 / 255 + 1e-6),
+    "base_color": ("abs", 1e-2),       # the glTF BRDF's material bits (clrender/gbuffer.py): as albedo's
+    "metallic": ("abs", 1 / 255 + 1e-6),
+    "roughness": ("abs", 1 / 255 + 1e-6),
+    "shading_model": ("exact", 0.0),
 }
 
 # With the LDR post effects a last-ulp difference in the HDR colour can flip FXAA's contrast test
@@ -169,7 +173,21 @@ def default_cases(width: int, height: int) -> list[tuple[str, Scene, Camera]]:
     cases.append(("lights", lights, Camera.look_at((0, 1.5, 1), (0, -1, -5), near=0.1, far=50)))
     cases.append(("glass", _transparent_case(rng), Camera.look_at((0, 0, 0), (0, 0, -1), near=0.1, far=50)))
     cases.append(("materials", _materials_case(rng), Camera.look_at((0, 0.5, 1.5), (0, 0, -3), near=0.1, far=50)))
+    # The glTF BRDF under an HDR environment (docs/shading.md): the prefilter kernels, the
+    # environment's ambient light, reflections and background.
+    lit = _materials_case(rng)
+    lit.set_environment(_check_environment(rng), intensity=0.8, rotation_deg=25.0)
+    cases.append(("environment", lit, Camera.look_at((0, 0.5, 1.5), (0, 0, -3), near=0.1, far=50)))
     return cases
+
+
+def _check_environment(rng, height: int = 16) -> np.ndarray:
+    """A small HDR environment: a sky gradient, a bright sun-like spot and texel noise."""
+    from .environment import directions_of_texels
+    d = directions_of_texels(height, 2 * height)
+    sky = 0.5 + 0.5 * np.clip(d[..., 1:2], 0, 1) * np.array([0.5, 0.7, 1.0])
+    sun = 40.0 * (d @ np.array([0.48, 0.6, -0.64]) > 0.97)[..., None]
+    return (sky + sun + rng.uniform(0, 0.2, d.shape)).astype(np.float32)
 
 
 def _materials_case(rng) -> Scene:
@@ -223,8 +241,8 @@ def _transparent_case(rng) -> Scene:
     return scene
 
 
-AOVS = ("triangle_id", "depth", "normal", "albedo", "specular_intensity", "specular_power", "emissive", "occlusion",
-        "velocity", "light_count", "ao", "shadow", "fragment_count", "transmittance", "edges", "color", "image")
+AOVS = ("triangle_id", "depth", "normal", "albedo", "specular_intensity", "specular_power", "base_color", "metallic",
+        "roughness", "shading_model", "emissive", "occlusion", "velocity", "light_count", "ao", "shadow", "fragment_count", "transmittance", "edges", "color", "image")
 
 
 def run_check(devices="all", scenes: Sequence[str | Path] = (), width: int = 96,

@@ -12,6 +12,7 @@
                     --bloom --bloom-threshold T --bloom-strength S --bloom-radius PX
                     --motion-blur --shutter F --motion-blur-samples N --previous-eye x,y,z --previous-target x,y,z
                     --hatching --hatching-scale S --hatching-saturation S
+                    --environment PATH|studio|none --environment-intensity X --environment-rotation DEG
                     --aov depth,normal,... --camera-eye x,y,z --camera-target x,y,z --fov DEG
                     --ortho HALF_HEIGHT --bit-depth 8|16 --exr --video FILE --fps N --quiet
                     --frames A:B[:STEP]|N|all --time-range T0:T1 --resume --workers N
@@ -93,6 +94,60 @@ def _camera(scene, args):
         raise CLIError(str(exc)) from None
 
 
+ENVIRONMENT_FLAGS = {"environment": "--environment", "environment_intensity": "--environment-intensity",
+                     "environment_rotation": "--environment-rotation"}
+
+
+def environment_option(args):
+    """--environment, loaded once for every scene: None (not given: each scene's own), "none", or
+    the Environment (with --environment-intensity/--environment-rotation)."""
+    text = getattr(args, "environment", None)
+    intensity = getattr(args, "environment_intensity", None)
+    rotation = getattr(args, "environment_rotation", None)
+    if text is None:
+        return None
+    if text.strip().lower() == "none":
+        if intensity is not None or rotation is not None:
+            raise CLIError("--environment-intensity/--environment-rotation: there is no environment with "
+                           "--environment none")
+        return "none"
+    from .environment import load_environment
+    try:
+        return load_environment(text, 1.0 if intensity is None else intensity, 0.0 if rotation is None else rotation)
+    except ValueError as exc:
+        raise CLIError(f"--environment: {_one_line(exc)}") from None
+
+
+def apply_environment(scene, args, environment) -> None:
+    """Put environment_option's result on a loaded scene: "none" removes the scene's environment
+    (a TOML table's, load_scene's default studio), an Environment replaces it; without
+    --environment, --environment-intensity/--environment-rotation change the scene's own (a
+    CLIError when it has none)."""
+    if isinstance(environment, str):                 # "none"
+        scene.set_environment(None)
+        return
+    if environment is not None:
+        if isinstance(scene.settings, dict):
+            scene.settings.pop("default_environment", None)
+        scene.environment = environment
+        return
+    intensity = getattr(args, "environment_intensity", None)
+    rotation = getattr(args, "environment_rotation", None)
+    if intensity is None and rotation is None:
+        return
+    if scene.environment is None:
+        flag = "--environment-intensity" if intensity is not None else "--environment-rotation"
+        raise CLIError(f"{flag}: {scene.source} has no environment to change (give --environment PATH|studio)")
+    scene.environment = scene.environment.with_params(intensity=intensity, rotation_deg=rotation)
+
+
+def describe_environment(scene) -> str:
+    """"environment: ..." for the per-scene line: none, the source, "studio (default: the file has no lights)"."""
+    from .environment import describe
+    settings = scene.settings if isinstance(scene.settings, dict) else {}
+    return describe(getattr(scene, "environment", None), default=bool(settings.get("default_environment")))
+
+
 # ---------------------------------------------------------------------------------------------
 # outputs
 def _plan_outputs(scenes: list[str], out: str) -> list[Path]:
@@ -167,7 +222,8 @@ def render_options(args) -> dict:
     check_scene_files(args.scenes)
     options = {name: value for name, value in (
         ("tile_size", args.tile_size), ("light_tile_size", args.light_tile_size),
-        ("light_culling", args.light_culling), ("pipeline", args.pipeline), ("msaa", args.msaa),
+        ("light_culling", args.light_culling), ("pipeline", args.pipeline), ("shading", args.shading),
+        ("msaa", args.msaa),
         ("light_buffer_specular", args.light_buffer_specular),
         ("light_buffer_precision", args.light_buffer_precision), ("tonemap", args.tonemap), ("exposure", args.exposure),
         ("ssao", args.ssao), ("ssao_radius", args.ssao_radius), ("ssao_strength", args.ssao_strength),
@@ -214,6 +270,10 @@ def cmd_render(args) -> int:
 
     options = render_options(args)
     if batch_requested(args):
+        given = [flag for name, flag in ENVIRONMENT_FLAGS.items() if getattr(args, name, None) is not None]
+        if given:
+            raise CLIError(f"{given[0]}: not supported with --frames/--time-range/--resume/--workers/--scheduler "
+                           f"yet (use a TOML [environment] table)")
         from .cli_batch import cmd_render_frames
         return cmd_render_frames(args, options)
     scenes = list(args.scenes)
@@ -229,6 +289,7 @@ def cmd_render(args) -> int:
     elif getattr(args, "fps", None) is not None:
         _note(args, f"{PROG}: note: --fps has no effect on a still without --video")
     _check_distinct(scenes, images, args.aov, exr, video)
+    environment = environment_option(args)
     written: list[Path] = []
     # The device (its probe, on a first run) and the kernels of the flags' configuration get ready
     # on another thread while the first scene loads: both are mostly waiting (a child process, the
@@ -245,6 +306,7 @@ def cmd_render(args) -> int:
             scene = _load(scene_path)
             if scene.animation is not None:       # a still of an animated scene: posed at --time
                 scene.pose(args.time)
+            apply_environment(scene, args, environment)
             width, height = scene_size(scene, args.width, args.height)
             camera = _camera(scene, args)
             config = _scene_config(scene, options)
@@ -268,7 +330,8 @@ def cmd_render(args) -> int:
             print(f"{PROG}: error: {message}", file=sys.stderr, flush=True)
             continue
         _note(args, f"[{index}/{n}] {scene_path} -> {image} ({wall_ms:.1f} ms, "
-                    f"{scene.triangle_count} triangles, {width}x{height})")
+                    f"{scene.triangle_count} triangles, {width}x{height}; "
+                    f"environment: {describe_environment(scene)})")
         _note(args, "    " + _format_stats(frame.stats))
     if video is not None and written:
         try:

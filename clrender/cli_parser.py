@@ -87,6 +87,26 @@ def _half_height(text: str) -> float:
     return value
 
 
+def _non_negative_float(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        value = float("nan")
+    if not (value >= 0.0 and math.isfinite(value)):
+        raise argparse.ArgumentTypeError(f"expected a finite number >= 0, got {text!r}")
+    return value
+
+
+def _finite_float(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        value = float("nan")
+    if not math.isfinite(value):
+        raise argparse.ArgumentTypeError(f"expected a finite number, got {text!r}")
+    return value
+
+
 def _aov_list(text: str) -> list[str]:
     names = [n.strip().lower() for n in text.split(",") if n.strip()]
     if not names:
@@ -113,7 +133,7 @@ def _join_vector_options(argv: list[str]) -> list[str]:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    from .renderer import (LIGHT_BUFFER_PRECISION, LIGHT_BUFFER_SPECULAR, LIGHT_CULLING, PIPELINES,
+    from .renderer import (LIGHT_BUFFER_PRECISION, LIGHT_BUFFER_SPECULAR, LIGHT_CULLING, PIPELINES, SHADING,
                            TRANSPARENCY)
 
     parser = _Parser(prog=PROG, description="clrender: a tiled deferred renderer whose pixels are "
@@ -148,6 +168,9 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--pipeline", choices=PIPELINES,
                    help="renderer variant: deferred shading, Engel's light pre-pass, or Trebilco's light-indexed "
                         "deferred (default deferred; docs/variants.md)")
+    r.add_argument("--shading", choices=SHADING,
+                   help="auto: glTF metallic-roughness materials with the glTF 2.0 BRDF, the others Blinn-Phong; "
+                        "blinn_phong: the report's model for every material (default auto; docs/shading.md)")
     r.add_argument("--msaa", type=int, metavar="N",
                    help="with --pipeline light_prepass: colour sub-samples per pixel, 1, 2, 4 or 8 (default 1)")
     r.add_argument("--light-buffer-specular", choices=LIGHT_BUFFER_SPECULAR,
@@ -203,6 +226,15 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--hatching-scale", type=float, metavar="S", help="with --hatching: stroke scale (default 1)")
     r.add_argument("--hatching-saturation", type=float, metavar="S",
                    help="with --hatching: colour kept, 0 (ink on white) .. 1 (default 0.3)")
+    r.add_argument("--environment", metavar="PATH|studio|none",
+                   help="HDR environment lighting the scene (image-based lighting): an .exr/.hdr/.pic "
+                        "equirectangular image, the built-in neutral 'studio', or 'none' to remove the scene's "
+                        "(default: the scene's own: a TOML [environment] table, or 'studio' for a glTF file "
+                        "without lights)")
+    r.add_argument("--environment-intensity", type=_non_negative_float, metavar="X",
+                   help="scale the environment's radiance (default 1, or the scene's)")
+    r.add_argument("--environment-rotation", type=_finite_float, metavar="DEG",
+                   help="turn the environment about +Y by DEG degrees (default 0, or the scene's)")
     r.add_argument("--time", type=float, default=0.0, metavar="SECONDS",
                    help="time of a single frame: poses the scene's animation and places its light particles (default 0)")
     r.add_argument("--aov", type=_aov_list, default=[], metavar="LIST",

@@ -165,9 +165,12 @@ class Frame:
     tonemap: str = "reinhard"
     exposure: float = 1.0
     readback: Readback = field(default_factory=Readback, repr=False)
+    triangle_gltf: Optional[np.ndarray] = field(default=None, repr=False)   # (T,) bool: the triangle's material
+                                                                            # is shaded with the glTF BRDF
 
     AOV_NAMES = ("color", "light_count", "depth", "linear_depth", "normal", "albedo", "triangle_id", "velocity",
-                 "specular_intensity", "specular_power", "emissive", "occlusion", "ao", "shadow", "fragment_count",
+                 "specular_intensity", "specular_power", "base_color", "metallic", "roughness", "shading_model",
+                 "emissive", "occlusion", "ao", "shadow", "fragment_count",
                  "transmittance", "edges", "image")
 
     # -- arrays read from the device ----------------------------------------------------------
@@ -275,18 +278,56 @@ class Frame:
         return n
 
     @cached_property
+    def shading_model(self) -> np.ndarray:
+        """(H, W) int8: 0 Blinn-Phong, 1 the glTF BRDF (RenderConfig.shading, kernels/brdf.h), -1 on
+        background; from the pixel's triangle's material (the G-buffer spends no bit on it)."""
+        tri = self.triangle_id
+        out = np.where(tri >= 0, 0, -1).astype(np.int8)
+        if self.triangle_gltf is not None and self.triangle_gltf.size:
+            fg = tri >= 0
+            out[fg] = self.triangle_gltf[tri[fg]].astype(np.int8)
+        return out
+
+    def _model_field(self, name: str, model: int) -> np.ndarray:
+        """A model-dependent field (clrender.gbuffer: they share bits), 0 on other pixels."""
+        v = self._decode(name)
+        v[self.shading_model != model] = 0.0
+        return v
+
+    @cached_property
     def albedo(self) -> np.ndarray:
-        return self._decode("albedo")
+        """(H, W, 3) diffuse albedo: as stored on Blinn-Phong pixels, base colour × (1 − metallic)
+        on glTF-BRDF pixels (from the stored base colour and metallic); 0 on background."""
+        a = self._decode("albedo")
+        gltf = self.shading_model == 1
+        if gltf.any():
+            a[gltf] = self.base_color[gltf] * (1.0 - self.metallic[gltf])[:, None]
+        return a
 
     @cached_property
     def specular_intensity(self) -> np.ndarray:
-        return self._decode("specular_intensity")
+        """(H, W) Blinn-Phong pixels' specular intensity; 0 elsewhere."""
+        return self._model_field("specular_intensity", 0)
 
     @cached_property
     def specular_power(self) -> np.ndarray:
-        p = self._decode("specular_power")
-        p[self._background] = 0.0
-        return p
+        """(H, W) Blinn-Phong pixels' specular power; 0 elsewhere."""
+        return self._model_field("specular_power", 0)
+
+    @cached_property
+    def base_color(self) -> np.ndarray:
+        """(H, W, 3) glTF-BRDF pixels' linear base colour; 0 elsewhere."""
+        return self._model_field("base_color", 1)
+
+    @cached_property
+    def metallic(self) -> np.ndarray:
+        """(H, W) glTF-BRDF pixels' metallic; 0 elsewhere."""
+        return self._model_field("metallic", 1)
+
+    @cached_property
+    def roughness(self) -> np.ndarray:
+        """(H, W) glTF-BRDF pixels' perceptual roughness; 0 elsewhere."""
+        return self._model_field("roughness", 1)
 
     @cached_property
     def velocity(self) -> np.ndarray:

@@ -6,6 +6,10 @@ operations; clrender keeps that 128-bit texel (planes 0-3) and adds a 32-bit tri
 Normals are stored octahedral, 2×12 bits: unlike the report's (x, y) + sign-less z, the
 octahedral map covers the whole sphere, so the sign of z survives (the report's figure 5
 problem) in 24 bits with under 0.05° of error, which frees a byte for the specular power.
+Two shading models share the material bits (kernels/brdf.h): Blinn-Phong pixels store diffuse
+albedo, specular intensity and power; glTF-BRDF pixels base colour, metallic and roughness in the
+same bits. Which one a pixel is comes from its triangle's material (the id is already stored), so
+no bit of the 128 is spent on it.
 Each plane is a separate uint32 W×H array (structure of arrays: the shading pass reads only
 what it needs).
 """
@@ -26,18 +30,28 @@ class GField:
     bits: int
     codec: str      # encoding; kernels/gbuffer.h implements pack_<codec>, this module decodes
     doc: str
+    model: str = "any"   # "any", or the shading model whose pixels these bits mean this field on:
+                         # "blinn_phong" / "gltf" fields share their bits (kernels/brdf.h)
 
 
 PLANES = ("albedo_spec", "depth", "normal_power", "velocity", "triangle_id", "emissive_occlusion")
 
 LAYOUT: tuple[GField, ...] = (
-    GField("albedo", 0, 0, 24, "srgb8x3", "diffuse albedo (base colour × (1 − metallic)), sRGB-encoded 8 bits per channel (R in the low byte)"),
-    GField("specular_intensity", 0, 24, 8, "unorm8", "specular intensity in [0, 1]"),
+    GField("albedo", 0, 0, 24, "srgb8x3", "diffuse albedo, sRGB-encoded 8 bits per channel (R in the low byte)",
+           "blinn_phong"),
+    GField("base_color", 0, 0, 24, "srgb8x3", "base colour (the BRDF needs it whole: a metal's F0 is its base "
+           "colour), sRGB 8 bits per channel", "gltf"),
+    GField("specular_intensity", 0, 24, 8, "unorm8", "specular intensity in [0, 1]", "blinn_phong"),
+    GField("metallic", 0, 24, 8, "unorm8", "metallic in [0, 1]", "gltf"),
     GField("linear_depth", 1, 0, 32, "float32", "view depth / far (report II.3, 'Question du Z'); +inf on background"),
     GField("normal", 2, 0, 24, "oct12x2", "world-space unit shading normal (normal map applied), octahedral, 2×12-bit unorm (u low)"),
-    GField("specular_power", 2, 24, 8, "log2unorm8", "specular power p in [1, 2048] as round(255·log2(p)/11)"),
+    GField("specular_power", 2, 24, 8, "log2unorm8", "specular power p in [1, 2048] as round(255·log2(p)/11)",
+           "blinn_phong"),
+    GField("roughness", 2, 24, 8, "unorm8", "perceptual roughness in [0, 1] (α = roughness²); next to the "
+           "normal, as the power, so the light pre-pass's thin G-buffer has it", "gltf"),
     GField("velocity", 3, 0, 32, "half2", "screen-space motion in pixels (x low, y high), IEEE half floats"),
-    GField("triangle_id", 4, 0, 32, "int32", "input triangle index, -1 on background"),
+    GField("triangle_id", 4, 0, 32, "int32", "input triangle index, -1 on background; its material says which "
+           "shading model the pixel's model-dependent bits are for (no bit spent on it)"),
     GField("emissive", 5, 0, 24, "srgb8x3", "emissive colour factor × texture in [0, 1], sRGB 8 bits per channel; "
                                             "shading multiplies it by the material's emissive_strength"),
     GField("occlusion", 5, 24, 8, "unorm8", "material ambient occlusion (occlusionTexture), 1 = open"),
@@ -64,6 +78,8 @@ def kernel_defines() -> dict:
     """-D values for kernels/gbuffer.h (its #ifndef defaults must equal these; a test checks)."""
     defines = {"GB_PLANES": len(PLANES)}
     for f in LAYOUT:
+        if f.model == "gltf":         # the Blinn-Phong field's bits: kernels use its names
+            continue
         defines[f"GB_{f.name.upper()}_PLANE"] = f.plane
         defines[f"GB_{f.name.upper()}_SHIFT"] = f.shift
     return defines
@@ -183,8 +199,9 @@ def decode(planes: np.ndarray, name: str, far: float = 1.0) -> np.ndarray:
 
 def layout_markdown() -> str:
     """The layout as a Markdown table (README and docs are generated from this)."""
-    rows = ["| plane | bits | field | encoding | meaning |", "|---|---|---|---|---|"]
+    rows = ["| plane | bits | field | pixels | encoding | meaning |", "|---|---|---|---|---|---|"]
+    who = {"any": "all", "blinn_phong": "Blinn-Phong", "gltf": "glTF BRDF"}
     for f in LAYOUT:
         rows.append(f"| {f.plane} `{PLANES[f.plane]}` | {f.shift}–{f.shift + f.bits - 1} | `{f.name}` "
-                    f"| {f.codec} | {f.doc} |")
+                    f"| {who[f.model]} | {f.codec} | {f.doc} |")
     return "\n".join(rows)

@@ -101,7 +101,9 @@ class Pipeline:
         self.shadow = ShadowPass(device, config) if config.shadows else None
         if self.shadow is not None:
             self.passes.append(self.shadow)
-        self.passes += [*self._lighting_passes(device, config), *self.transparency[1:]]
+        # The environment's maps (Scene.set_environment): precomputed once per environment.
+        from .passes.ibl_pass import IblPass
+        self.passes += [IblPass(device, config), *self._lighting_passes(device, config), *self.transparency[1:]]
         # Over-sampling: everything so far renders k·W × k·H; the resolve filters down to W × H.
         self.post = ([ResolvePass(device, config)] if config.supersample > 1 else []) + self._post_passes(device, config)
         self.passes += self.post
@@ -169,7 +171,7 @@ class Pipeline:
                     "near", "far", "width", "height", "has_prev", "tiles_x", "tiles_y",
                     "lights", "n_lights", "ambient", "view_matrix", "camera_params", "tan_x", "tan_y",
                     "srgb_encode", "particle_systems", "time", "sun", "shadow_lights", "scene_bounds", "camera",
-                    "n_transparent_tris"}
+                    "n_transparent_tris", "gltf_scene", "environment"}
         for p in self.passes:
             missing = set(p.inputs) - produced
             if missing:
@@ -248,6 +250,8 @@ class Pipeline:
                         continue                        # no particles: no kernel
                     if p.name == "shadow" and not res["shadow_view_count"]:
                         continue                        # no shadowed light, no shadowed sun: no kernel
+                    if p.name == "ibl" and res["environment"] is None:
+                        continue                        # no environment: the constant ambient, no kernel
                     if stage is not None:               # programs only known now (shadow-map stages)
                         self.device.build(k.spec for k in lazy_kernels(p))
                     start = cl.enqueue_marker(self.queue)

@@ -17,6 +17,7 @@ from .scene import Scene
 TILE_SIZES = (8, 16, 32)
 LIGHT_CULLING = ("tiled", "brute_force", "quads", "stencil")   # docs/light_accumulation.md
 TONEMAPS = ("reinhard", "aces", "clamp")
+SHADING = ("auto", "blinn_phong")   # kernels/brdf.h: per-material models, or the report's everywhere
 SHADOW_FILTERS = ("pcf3x3", "poisson", "hard")
 TRANSPARENCY = ("abuffer", "depth_peeling", "screen_door")
 SUPERSAMPLE_FILTERS = ("box", "lanczos2", "mitchell")
@@ -36,6 +37,8 @@ def _is_real(x) -> bool:
 class RenderConfig:
     """Render options. Unknown names are errors (see `RenderConfig.from_options`)."""
     pipeline: str = "deferred"  # "deferred", "light_prepass" or "light_indexed" (docs/variants.md)
+    shading: str = "auto"       # "auto": glTF metallic-roughness materials with the glTF BRDF, the others
+                                # Blinn-Phong; "blinn_phong": everything through the report's model (docs/shading.md)
     msaa: int = 1              # light_prepass: colour sub-samples per pixel (1, 2, 4, 8; D3D standard patterns)
     light_buffer_specular: str = "rgb"       # light_prepass: "rgb" or "luminance" (the classic LPP trade-off)
     light_buffer_precision: str = "float32"  # light_prepass: "float32" or "float16" light buffer
@@ -90,6 +93,8 @@ class RenderConfig:
             raise ValueError(f"light_culling must be one of {LIGHT_CULLING}, got {self.light_culling!r}")
         if not isinstance(self.light_depth_mask, bool):
             raise ValueError(f"light_depth_mask must be True or False, got {self.light_depth_mask!r}")
+        if self.shading not in SHADING:
+            raise ValueError(f"shading must be one of {SHADING}, got {self.shading!r}")
         if self.tonemap not in TONEMAPS:
             raise ValueError(f"tonemap must be one of {TONEMAPS}, got {self.tonemap!r}")
         if not (isinstance(self.exposure, (int, float)) and np.isfinite(self.exposure) and self.exposure > 0):
@@ -246,6 +251,13 @@ class Renderer:
         lights = values["lights"].get(queue=self.device.queue)
         return lights[: values["n_lights"]]
 
+    def _triangle_gltf(self, scene: Scene, scene_res) -> Optional[np.ndarray]:
+        """Per triangle: shaded with the glTF BRDF (Frame.shading_model); None when none is."""
+        if not scene_res.values["gltf_scene"]:
+            return None
+        gltf = np.array([m.metallic is not None and not m.unlit for m in scene.materials])
+        return gltf[scene.triangle_material]
+
     def render(self, scene: Scene, camera: Optional[Camera] = None,
                previous_camera: Optional[Camera] = None, time: float = 0.0) -> Frame:
         """Render `scene` from `camera` (default: the scene's). `previous_camera` gives motion
@@ -268,7 +280,12 @@ class Renderer:
             raise ValueError(f"time must be finite, got {time!r}")
         scene_res = Resources(buffers=dict(scene_res.buffers), values={
             **scene_res.values, **scene_gpu.upload_lights(scene, self.device), "ambient": float(scene.ambient),
-            "particle_systems": tuple(scene.particle_systems), "sun": scene.sun})
+            "particle_systems": tuple(scene.particle_systems), "sun": scene.sun,
+            "environment": getattr(scene, "environment", None)})
+        if self.config.shading == "blinn_phong":      # the report's model and falloff for everything
+            scene_res.buffers["materials"] = scene_res.buffers["materials_blinn_phong"]
+            scene_res.values["gltf_scene"] = 0
+            scene_res.values["lights"] = scene_res.values["lights_blinn_phong"]
         upload_ms = (_time.perf_counter() - start) * 1e3
         readback, stats = self.pipeline.render(scene_res, camera, self.width, self.height, previous_camera, time)
         stats["device"] = self.device.name
@@ -276,7 +293,8 @@ class Renderer:
         stats["frame_copy_bytes"] = self.pipeline.snapshots.held_bytes     # earlier frames' unread AOVs
         stats["time"] = float(time)
         frame = Frame(width=self.width, height=self.height, far=float(camera.far), stats=stats,
-                      tonemap=self.config.tonemap, exposure=float(self.config.exposure), readback=readback)
+                      tonemap=self.config.tonemap, exposure=float(self.config.exposure), readback=readback,
+                      triangle_gltf=self._triangle_gltf(scene, scene_res))
         stats["wall_ms"] = (_time.perf_counter() - start) * 1e3      # what the caller waited for
         host = {"upload_ms": upload_ms, **stats["host"]}
         host["other_ms"] = max(stats["wall_ms"] - sum(host.values()), 0.0)

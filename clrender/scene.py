@@ -8,7 +8,7 @@ the setup kernel, so ids stay stable).
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Optional
+from typing import TYPE_CHECKING, Optional
 
 import numpy as np
 
@@ -17,6 +17,9 @@ from .camera import Camera
 from .errors import SceneError
 from .material import (ALPHA_MODES, LUMA, TEXTURE_SLOTS, Material, UVTransform,  # noqa: F401  (re-exported)
                        metallic_roughness_to_blinn_phong)
+
+if TYPE_CHECKING:
+    from .environment import Environment
 
 WRAP_MODES = ("repeat", "clamp", "mirror")
 
@@ -116,6 +119,8 @@ class Scene:
                                                 # None: generated at upload if a material has a normal map
     extra_uvs: Optional[np.ndarray] = None      # (K, V, 2) float32: TEXCOORD_1 .. TEXCOORD_K; None: K = 0
     animation: Optional[object] = None          # clrender.animation.Animation (glTF animations); None: static
+    environment: Optional["Environment"] = None  # HDR image-based lighting (set_environment); when set,
+                                                # the constant `ambient` term is not added
 
     def __post_init__(self):
         self.positions = np.ascontiguousarray(self.positions, dtype=np.float32).reshape(-1, 3)
@@ -199,6 +204,21 @@ class Scene:
         None` removes it."""
         self.sun = Sun(direction, color, shadow, shadow_map_size)
         return self.sun
+
+    def set_environment(self, source, intensity: float = 1.0, rotation_deg: float = 0.0,
+                        background: bool = True) -> Optional["Environment"]:
+        """Light the scene with an HDR environment (image-based lighting, clrender.environment):
+        `source` is an .exr/.hdr/.pic path, an (H, 2H, 3) linear RGB array, "studio" (a neutral
+        built-in one) or an Environment; `intensity` scales its radiance, `rotation_deg` turns it
+        about +Y, `background` shows it where no surface is. None removes it. While an environment
+        is set, the constant `ambient` term is not added (the environment is the ambient light).
+        Replaces any previous environment (and load_scene's default one); returns the Environment."""
+        from .environment import load_environment
+        environment = None if source is None else load_environment(source, intensity, rotation_deg, background)
+        if isinstance(self.settings, dict):
+            self.settings.pop("default_environment", None)
+        self.environment = environment
+        return environment
 
     def add_random_lights(self, count: int, seed: int, radius=(0.5, 2.0), intensity: float = 1.0) -> np.ndarray:
         """`count` point lights uniform in the scene's bounds, reproducible for a seed; returns their indices."""

@@ -88,6 +88,7 @@ def material_records(scene: Scene, slot_textures: list | None = None) -> np.ndar
         flags |= {"OPAQUE": 0, "MASK": structs.MAT_MASK, "BLEND": structs.MAT_BLEND}[m.alpha_mode]
         flags |= (structs.MAT_METALLIC_ROUGHNESS if m.metallic is not None else 0)
         flags |= (structs.MAT_UNLIT if m.unlit else 0)
+        flags |= (structs.MAT_GLTF_BRDF if m.metallic is not None and not m.unlit else 0)
         for k, slot in enumerate(TEXTURE_SLOTS[1:]):
             flags |= (structs.MAT_SHARES_FIRST << k) if shares_base_footprint(scene, m, slot) else 0
         color = m.base_color[:3] + (m.base_color[3] * m.opacity,)     # opacity folds into alpha
@@ -96,6 +97,14 @@ def material_records(scene: Scene, slot_textures: list | None = None) -> np.ndar
         out[i] = (color, m.emissive, m.emissive_strength, m.specular_intensity, m.specular_power,
                   0.0 if m.metallic is None else m.metallic, m.roughness, m.normal_scale, m.occlusion_strength,
                   m.alpha_cutoff, flags, m.refraction, (0, 0, 0), slots)
+    return out
+
+
+def blinn_phong_records(records: np.ndarray) -> np.ndarray:
+    """The material records with no glTF-BRDF flag: the metallic-roughness mapping onto the
+    report's Blinn-Phong terms (kernels/material_eval.h) shades everything."""
+    out = records.copy()
+    out["flags"] &= np.uint32(~structs.MAT_GLTF_BRDF & 0xFFFFFFFF)
     return out
 
 
@@ -209,7 +218,12 @@ def upload_lights(scene: Scene, device) -> dict:
     shadowed = shadow_indices(data, scene.source)
     _LIGHTS.pop(key, None)                    # release the previous upload before allocating
     buf = cla.to_device(device.queue, data if len(data) else np.zeros(1, structs.light_dtype))
-    values = {"lights": buf, "n_lights": int(len(data)), "shadow_lights": data[shadowed]}
+    values = {"lights": buf, "n_lights": int(len(data)), "shadow_lights": data[shadowed], "lights_blinn_phong": buf}
+    if len(data) and np.any(data["falloff"] != structs.FALLOFF_REPORT):
+        # RenderConfig.shading = "blinn_phong": the report's falloff for glTF lights too
+        report = data.copy()
+        report["falloff"] = structs.FALLOFF_REPORT
+        values["lights_blinn_phong"] = cla.to_device(device.queue, report)
     _LIGHTS[key] = (weakref.ref(scene), lights, lights.tobytes(), values)
     _watch(scene, key)
     return values
@@ -258,10 +272,13 @@ def upload(scene: Scene, device) -> Resources:
         "triangles": put(scene.triangles, np.int32),
         "tri_material": put(scene.triangle_material, np.int32),
         "materials": cla.to_device(q, materials),
+        # RenderConfig.shading = "blinn_phong": every material through the report's model
+        "materials_blinn_phong": cla.to_device(q, blinn_phong_records(materials)),
         **upload_pool(device, textures),             # texels, tex_infos, tex_levels, srgb_lut
     }, values={"n_tris": scene.triangle_count, "scene_bounds": scene.bounds(),   # bounds: sun shadow fit
                "n_transparent_tris": transparent_triangle_count(scene), "n_vertices": len(scene.positions),
-               "has_colors": int(scene.colors is not None), "surface_extras": int(surface_extras(scene))})
+               "has_colors": int(scene.colors is not None), "surface_extras": int(surface_extras(scene)),
+               "gltf_scene": int(np.any(materials["flags"] & structs.MAT_GLTF_BRDF))})
     if scene.previous_positions is not None:     # objects moved (Scene.set_transform): the G-buffer's velocity
         res.buffers["prev_positions"] = put(scene.previous_positions, np.float32)
     _UPLOADS[key] = (weakref.ref(scene), fingerprint, res)

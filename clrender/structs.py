@@ -4,6 +4,7 @@ import numpy as np
 PRIM_BACKFACE, PRIM_MASKED, PRIM_DITHER = 1, 2, 4
 MAT_DOUBLE_SIDED, MAT_MASK, MAT_BLEND, MAT_METALLIC_ROUGHNESS, MAT_UNLIT = 1, 2, 4, 8, 16
 MAT_SHARES_FIRST = 32     # MAT_SHARES(slot) = MAT_SHARES_FIRST << (slot - 1), slots 1..4
+MAT_GLTF_BRDF = 512       # shaded with the glTF 2.0 BRDF (kernels/brdf.h)
 LUT_SRGB, LUT_LINEAR = 0, 256
 WRAP = {"repeat": 0, "clamp": 1, "mirror": 2}
 
@@ -33,10 +34,13 @@ texinfo_dtype = np.dtype([("first_level", "<i4"), ("levels", "<i4"), ("wrap_s", 
 texlevel_dtype = np.dtype([("offset", "<i4"), ("width", "<i4"), ("height", "<i4"), ("pad", "<i4")])
 
 LIGHT_POINT, LIGHT_SPOT = 0, 1
+# Light.falloff (kernels/structs.h): the report's window, KHR_lights_punctual's inverse square with its
+# range window, or without one (culled at the radius)
+FALLOFF_REPORT, FALLOFF_INVERSE_SQUARE, FALLOFF_INVERSE_SQUARE_UNBOUNDED = 0, 1, 2
 light_dtype = np.dtype([
     ("position", "<f4", 3), ("radius", "<f4"), ("color", "<f4", 3), ("type", "<i4"),
     ("direction", "<f4", 3), ("cos_outer", "<f4"), ("cos_inner", "<f4"),
-    ("shadow_size", "<i4"), ("shadow", "<i4"), ("pad", "<f4"),
+    ("shadow_size", "<i4"), ("shadow", "<i4"), ("falloff", "<i4"),
 ], align=True)
 
 shadow_view_dtype = np.dtype([

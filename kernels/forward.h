@@ -18,6 +18,7 @@
 #define CLRENDER_FORWARD_H
 #include "surface_vec.h"
 #include "lighting.h"
+#include "ambient.h"
 
 #ifndef LIGHT_TILE
 #define LIGHT_TILE 32             /* light-culling tile side (RenderConfig.light_tile_size) */
@@ -35,7 +36,8 @@
     global const int* tile_light_counts, global const int* tile_lights, int list_capacity, int light_tiles_x, \
     global const float* shadow_atlas, int atlas_stride, global const ShadowView* shadow_views, \
     float shadow_bias, float shadow_slope_bias, float shadow_normal_offset, \
-    int has_sun, global const float* sun, int sun_cascades, int spot_view0, int spot_plane0
+    int has_sun, global const float* sun, int sun_cascades, int spot_view0, int spot_plane0, \
+    int has_env, int env_background, ENV_PARAMS
 
 typedef struct {
     SceneV scene;
@@ -47,12 +49,14 @@ typedef struct {
     global const int* tile_light_counts;
     int list_capacity, light_tiles_x;
     LightEnv env;
+    int has_env;                      /* the environment's ambient light (ambient.h) */
+    EnvMaps envmaps;
 } Forward;
 
 /* A `Forward` from FORWARD_PARAMS. */
 #define FORWARD_INIT { SCENE_INIT(prims), camera, width, height, ambient, n_lights, \
                        tile_light_offsets, tile_light_counts, list_capacity, light_tiles_x, \
-                       LIGHT_ENV_INIT }
+                       LIGHT_ENV_INIT, has_env, ENV_INIT }
 
 typedef struct {
     floatV r, g, b;    /* albedo·(ambient + diffuse) + specular, linear HDR */
@@ -88,16 +92,31 @@ static FragmentsV shade_fragments(const Forward* f, intV pi, floatV z, intV acti
     const int first = f->tile_light_offsets[tile];
     const int count = max(min(f->tile_light_counts[tile], f->list_capacity - first), 0);
 #endif
-    floatV dr = 0.0f, dg = 0.0f, db = 0.0f, sr = 0.0f, sg = 0.0f, sb = 0.0f;
+    const intV gltf = gltf_lanes(sf.mat_flags, active);
+    const BrdfV m = brdf_inputs(gltf, sf.spec_i, sf.spec_p, sf.n.x, sf.n.y, sf.n.z, -dx * inv_d, -dy * inv_d,
+                                -dz * inv_d);
+    floatV dr = 0.0f, dg = 0.0f, db = 0.0f, sr = 0.0f, sg = 0.0f, sb = 0.0f, tr = 0.0f, tg = 0.0f, tb = 0.0f;
     accumulate_lights(&f->env, first, count, active, wx, wy, wz, sf.n.x, sf.n.y, sf.n.z,
-                      -dx * inv_d, -dy * inv_d, -dz * inv_d, sf.spec_i, sf.spec_p, z, px, py,
-                      0, 0, VEC, 0, &dr, &dg, &db, &sr, &sg, &sb);
+                      -dx * inv_d, -dy * inv_d, -dz * inv_d, &m, z, px, py,
+                      0, 0, VEC, 0, &dr, &dg, &db, &sr, &sg, &sb, &tr, &tg, &tb);
     FragmentsV out;
     const floatV strength = GATHER_M(floatV, f->scene.materials, sf.mat, emissive_strength);
     const intV unlit = (sf.mat_flags & (int)MAT_UNLIT) != 0;
-    out.r = select(sf.r * (f->ambient * sf.occlusion + dr) + sr + sf.er * strength, sf.r, unlit);
-    out.g = select(sf.g * (f->ambient * sf.occlusion + dg) + sg + sf.eg * strength, sf.g, unlit);
-    out.b = select(sf.b * (f->ambient * sf.occlusion + db) + sb + sf.eb * strength, sf.b, unlit);
+    const AmbientV amb = ambient_light(f->has_env, &f->envmaps, &m, (floatV)f->ambient, 1.0f, sf.n.x, sf.n.y, sf.n.z,
+                                       -dx * inv_d, -dy * inv_d, -dz * inv_d);
+    out.r = select(sf.r * (amb.dr * sf.occlusion + dr) + sr + sf.er * strength, sf.r, unlit);
+    out.g = select(sf.g * (amb.dg * sf.occlusion + dg) + sg + sf.eg * strength, sf.g, unlit);
+    out.b = select(sf.b * (amb.db * sf.occlusion + db) + sb + sf.eb * strength, sf.b, unlit);
+    if (m.any_gltf) {                  /* brdf.h: the glTF lanes from base colour and metallic */
+        floatV ar = sf.r, ag = sf.g, ab = sf.b, f0r, f0g, f0b;
+        gltf_albedo_f0(gltf, sf.spec_i, &ar, &ag, &ab, &f0r, &f0g, &f0b);
+        out.r = select(out.r, compose_gltf(ar, f0r, dr, sr, tr, amb.dr, amb.sr, amb.tr, sf.occlusion, sf.er * strength),
+                       gltf);
+        out.g = select(out.g, compose_gltf(ag, f0g, dg, sg, tg, amb.dg, amb.sg, amb.tg, sf.occlusion, sf.eg * strength),
+                       gltf);
+        out.b = select(out.b, compose_gltf(ab, f0b, db, sb, tb, amb.db, amb.sb, amb.tb, sf.occlusion, sf.eb * strength),
+                       gltf);
+    }
     out.a = clamp(sf.a, 0.0f, 1.0f);
     out.ox = 0.0f;
     out.oy = 0.0f;

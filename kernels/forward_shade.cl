@@ -35,6 +35,7 @@
 #include "lighting.h"
 #include "gbuffer_pack.h"
 #include "gbuffer_decode.h"
+#include "ambient.h"
 
 kernel __attribute__((reqd_work_group_size(LTILE / VEC, LTILE, 1)))
 void forward_shade(global const int* vis_prim, global const float* vis_depth, int width, int height, float far,
@@ -46,6 +47,7 @@ void forward_shade(global const int* vis_prim, global const float* vis_depth, in
                    global const float* shadow_atlas, int atlas_stride, global const ShadowView* shadow_views,
                    float shadow_bias, float shadow_slope_bias, float shadow_normal_offset,
                    int has_sun, global const float* sun, int sun_cascades, int spot_view0, int spot_plane0,
+                   int has_env, int env_background, ENV_PARAMS,
                    global float* color, global uint* gbuffer, global int* light_count, global float* shadow_out,
                    global int* light_pairs)
 {
@@ -64,6 +66,7 @@ void forward_shade(global const int* vis_prim, global const float* vis_depth, in
     uintV planes[GB_PLANES];
     gbuffer_background(planes);
     floatV cr = 0.0f, cg = 0.0f, cb = 0.0f;
+    const EnvMaps envmaps = ENV_INIT;
     intV evaluated = 0, useful = 0;           /* (pixel, light) pairs: walked, reached (light_pairs) */
     const int2 range = tile_light_range(tile_light_offsets, tile_light_counts, list_capacity, tile, n_lights);
     const int first = range.x, count = range.y;
@@ -79,19 +82,27 @@ void forward_shade(global const int* vis_prim, global const float* vis_depth, in
         for (int i = 0; i < GB_PLANES; ++i) planes[i] = select(planes[i], packed[i], ufg);
 
         /* Decoded back, as shade.cl reads them. */
-        const LitPointV s = decode_lit_point(planes[GB_NORMAL_PLANE], planes[GB_LINEAR_DEPTH_PLANE], fg, far);
+        const intV gltf = gltf_lanes(sf.mat_flags, fg);
+        const LitPointV s = decode_lit_point(planes[GB_NORMAL_PLANE], planes[GB_LINEAR_DEPTH_PLANE], fg, far, gltf);
         floatV ar, ag, ab, spec_i;
         decode_albedo(planes[GB_ALBEDO_PLANE], srgb_lut, &ar, &ag, &ab, &spec_i);
         const ViewPointV v = view_point(camera, width, height, px0, py, s.depth);
+        const BrdfV m = brdf_inputs(gltf, spec_i, s.spec_p, s.nx, s.ny, s.nz, v.vx, v.vy, v.vz);
         const LightEnv env = LIGHT_ENV_INIT;
-        floatV dr = 0.0f, dg = 0.0f, db = 0.0f, sr = 0.0f, sg = 0.0f, sb = 0.0f;
+        floatV dr = 0.0f, dg = 0.0f, db = 0.0f, sr = 0.0f, sg = 0.0f, sb = 0.0f, tr = 0.0f, tg = 0.0f, tb = 0.0f;
         accumulate_lights_counted(&env, first, count, fg, 0, 0, &evaluated, &useful, v.px, v.py, v.pz, s.nx, s.ny,
-                                  s.nz, v.vx, v.vy, v.vz, spec_i, s.spec_p, s.depth, px, py, shadow_out, p0, valid,
-                                  npix, &dr, &dg, &db, &sr, &sg, &sb);
+                                  s.nz, v.vx, v.vy, v.vz, &m, s.depth, px, py, shadow_out, p0, valid,
+                                  npix, &dr, &dg, &db, &sr, &sg, &sb, &tr, &tg, &tb);
         const SurfaceExtrasV x = material_extras(planes[GB_EMISSIVE_PLANE], sf.mat, fg, materials, srgb_lut);
-        cr = select((floatV)0.0f, compose_extras(ar, ambient, dr, sr, x.er, x.occlusion, x.unlit), fg);
-        cg = select((floatV)0.0f, compose_extras(ag, ambient, dg, sg, x.eg, x.occlusion, x.unlit), fg);
-        cb = select((floatV)0.0f, compose_extras(ab, ambient, db, sb, x.eb, x.occlusion, x.unlit), fg);
+        const AmbientV amb = ambient_light(has_env, &envmaps, &m, (floatV)ambient, 1.0f, s.nx, s.ny, s.nz, v.vx, v.vy,
+                                           v.vz);
+        compose_lit(&m, fg, ar, ag, ab, spec_i, &amb, 1, x.er, x.eg, x.eb, x.occlusion, x.unlit,
+                    dr, dg, db, sr, sg, sb, tr, tg, tb, &cr, &cg, &cb);
+    }
+    if (has_env && env_background && ANY(!fg)) {   /* the environment behind the geometry */
+        floatV vx, vy, vz;
+        view_vectors(camera, width, height, px0 + LANES, (intV)py, &vx, &vy, &vz);
+        environment_background(1, 1, &envmaps, fg, vx, vy, vz, &cr, &cg, &cb);
     }
     gbuffer_store(gbuffer, npix, p0, valid, planes);
     store_plane(color, p0, valid, cr);

@@ -7,6 +7,7 @@
 #define CLRENDER_GBUFFER_DECODE_H
 #include "structs.h"
 #include "gbuffer.h"
+#include "brdf.h"
 
 typedef struct {
     floatV nx, ny, nz;          /* unit normal */
@@ -14,12 +15,15 @@ typedef struct {
     floatV depth;               /* view depth (linear depth · far), 0 on background */
 } LitPointV;
 
-/* Normal, power and depth from the normal/power and linear-depth words of foreground lanes fg. */
-static inline LitPointV decode_lit_point(uintV w_nrm, uintV w_depth, intV fg, float far)
+/* Normal, power and depth from the normal/power and linear-depth words of foreground lanes fg;
+ * on the glTF-BRDF lanes `gltf` the power byte is the roughness (clrender/gbuffer.py). */
+static inline LitPointV decode_lit_point(uintV w_nrm, uintV w_depth, intV fg, float far, intV gltf)
 {
     LitPointV s;
     s.depth = select((floatV)0.0f, as_floatV(w_depth) * far, fg);
-    s.spec_p = exp2(convert_floatV((w_nrm >> GB_SPECULAR_POWER_SHIFT) & 255u) * (SPEC_POWER_LOG2_MAX / 255.0f));
+    const floatV byte = convert_floatV((w_nrm >> GB_SPECULAR_POWER_SHIFT) & 255u);
+    s.spec_p = exp2(byte * (SPEC_POWER_LOG2_MAX / 255.0f));
+    if (ANY(gltf)) s.spec_p = select(s.spec_p, byte * (1.0f / 255.0f), gltf);
     floatV fx, fy, fz;
     unpack_oct12x2V(w_nrm >> GB_NORMAL_SHIFT, &fx, &fy, &fz);
     const floatV inv_n = rsqrt(fx * fx + fy * fy + fz * fz);
@@ -27,7 +31,18 @@ static inline LitPointV decode_lit_point(uintV w_nrm, uintV w_depth, intV fg, fl
     return s;
 }
 
-/* Linear albedo and specular intensity from the albedo/specular word. */
+/* The lanes shaded with the glTF BRDF, from their triangles' materials (none unless the scene
+ * has such materials: `gltf_scene`). */
+static inline intV gltf_lanes_of(intV tri, intV fg, int gltf_scene, global const int* tri_material,
+                                 global const Material* materials)
+{
+    if (!gltf_scene) return (intV)0;
+    const intV mat = GATHER_I(tri_material, select((intV)0, tri, fg));
+    return gltf_lanes(as_intV(GATHER_M(uintV, materials, mat, flags)), fg);
+}
+
+/* Linear albedo and specular intensity from the albedo/specular word (on glTF-BRDF lanes: the
+ * base colour and metallic). */
 static inline void decode_albedo(uintV w_alb, constant float* srgb_lut, floatV* ar, floatV* ag, floatV* ab,
                                  floatV* spec_i)
 {
@@ -72,11 +87,4 @@ static inline SurfaceExtrasV decode_extras(uintV w_eo, intV tri, intV fg, global
     return material_extras(w_eo, GATHER_I(tri_material, select((intV)0, tri, fg)), fg, materials, srgb_lut);
 }
 
-/* The report's global multiply with the material's extras: albedo·(ambient·ao + diffuse) +
- * specular + emission; unlit lanes: the albedo alone. */
-static inline floatV compose_extras(floatV albedo, floatV ambient_ao, floatV diffuse, floatV specular, floatV emission,
-                                    floatV occlusion, intV unlit)
-{
-    return select(albedo * (ambient_ao * occlusion + diffuse) + specular + emission, albedo, unlit);
-}
 #endif

@@ -39,6 +39,15 @@ static inline uintV pack_velocity(const SurfaceV* sf, global const float* prev_v
     return pack_half2V(vx, vy);
 }
 
+/* The specular power's byte (log2unorm8), or on glTF-BRDF materials the roughness's (unorm8). */
+static inline uintV pack_spec_byte(intV mat_flags, floatV spec_p)
+{
+    const uintV log2p = pack_log2unorm8V(spec_p);
+    const intV gltf = (mat_flags & (int)MAT_GLTF_BRDF) != 0;
+    if (!ANY(gltf)) return log2p;
+    return select(log2p, unormV(spec_p, 8), as_uintV(gltf) != 0u);
+}
+
 /* Every plane of the surface sf (linear depth = view depth / far, packed velocity `vel`). */
 static inline void gbuffer_pack(const SurfaceV* sf, floatV linear_depth, uintV vel, constant float2* srgb_encode,
                                 uintV planes[GB_PLANES])
@@ -48,7 +57,7 @@ static inline void gbuffer_pack(const SurfaceV* sf, floatV linear_depth, uintV v
     GB_PUT(planes, SPECULAR_INTENSITY, unormV(sf->spec_i, 8));
     GB_PUT(planes, LINEAR_DEPTH, as_uintV(linear_depth));
     GB_PUT(planes, NORMAL, pack_oct12x2V(sf->n.x, sf->n.y, sf->n.z));
-    GB_PUT(planes, SPECULAR_POWER, pack_log2unorm8V(sf->spec_p));
+    GB_PUT(planes, SPECULAR_POWER, pack_spec_byte(sf->mat_flags, sf->spec_p));
     GB_PUT(planes, VELOCITY, vel);
     GB_PUT(planes, TRIANGLE_ID, as_uintV(sf->tri));
     GB_PUT(planes, EMISSIVE, pack_srgb8x3V(sf->er, sf->eg, sf->eb, srgb_encode));

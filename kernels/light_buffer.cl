@@ -16,7 +16,8 @@
  * Buffers: gbuffer uint[GB_PLANES][H·W] (reads the depth, normal/power and id planes only);
  *          lights, tile lists, camera, shadow atlas and views, sun: as shade.cl.
  *          out: light_buffer float or half [LB_PLANES][H·W], LB_PLANES = 6 (D.rgb, S.rgb) or
- *          4 (D.rgb, S luminance); light_count int[H·W]; shadow_out float[planes][H·W];
+ *          4 (D.rgb, S luminance), then with LB_GLTF T.rgb (or T's luminance): the glTF BRDF's
+ *          sums (brdf.h), its lanes found through the triangle's material; light_count int[H·W]; shadow_out float[planes][H·W];
  *          light_pairs int[2][H·W] (pairs evaluated, useful: as shade.cl).
  * Work-groups: (LTILE/VEC, LTILE); global size = (tiles_x·LTILE/VEC, tiles_y·LTILE); no barriers.
  */
@@ -32,6 +33,9 @@
 #endif
 #ifndef LB_HALF
 #define LB_HALF 0
+#endif
+#ifndef LB_GLTF
+#define LB_GLTF 0    /* 1: RenderConfig.shading = "auto": the glTF BRDF's third sum T (brdf.h) follows */
 #endif
 #include "lighting.h"
 #include "gbuffer_decode.h"
@@ -65,6 +69,7 @@ void light_buffer(global const uint* gbuffer, int width, int height, float far, 
                   global const float* shadow_atlas, int atlas_stride, global const ShadowView* shadow_views,
                   float shadow_bias, float shadow_slope_bias, float shadow_normal_offset,
                   int has_sun, global const float* sun, int sun_cascades, int spot_view0, int spot_plane0,
+                  global const int* tri_material, global const Material* materials, int gltf_scene,
                   global lb_t* light_buf, global int* light_count, global float* shadow_out, global int* light_pairs)
 {
     const int px0 = get_global_id(0) * VEC, py = get_global_id(1);
@@ -77,19 +82,26 @@ void light_buffer(global const uint* gbuffer, int width, int height, float far, 
     /* The thin G-buffer; the world position on the pixel's view ray, V towards the eye. */
     const intV tri = as_intV(load_plane(gbuffer + GB_TRIANGLE_ID_PLANE * npix, p0, valid, 0xffffffffu));
     const intV fg = tri >= 0;
+#if LB_GLTF
+    const intV gltf = gltf_lanes_of(tri, fg, gltf_scene, tri_material, materials);
+#else
+    const intV gltf = 0;
+#endif
     const LitPointV s = decode_lit_point(load_plane(gbuffer + GB_NORMAL_PLANE * npix, p0, valid, 0u),
-                                         load_plane(gbuffer + GB_LINEAR_DEPTH_PLANE * npix, p0, valid, 0u), fg, far);
+                                         load_plane(gbuffer + GB_LINEAR_DEPTH_PLANE * npix, p0, valid, 0u), fg, far,
+                                         gltf);
     const ViewPointV v = view_point(camera, width, height, px0, py, s.depth);
+    const BrdfV m = brdf_inputs(gltf, (floatV)1.0f, s.spec_p, s.nx, s.ny, s.nz, v.vx, v.vy, v.vz);
 
-    floatV dr = 0.0f, dg = 0.0f, db = 0.0f, sr = 0.0f, sg = 0.0f, sb = 0.0f;
+    floatV dr = 0.0f, dg = 0.0f, db = 0.0f, sr = 0.0f, sg = 0.0f, sb = 0.0f, tr = 0.0f, tg = 0.0f, tb = 0.0f;
     const int2 range = tile_light_range(tile_light_offsets, tile_light_counts, list_capacity, tile, n_lights);
     const int first = range.x, count = range.y;
     const LightEnv env = LIGHT_ENV_INIT;
     intV evaluated = 0, useful = 0;           /* (pixel, light) pairs: walked, reached (light_pairs) */
     if (ANY(fg))
         accumulate_lights_counted(&env, first, count, fg, 0, 0, &evaluated, &useful, v.px, v.py, v.pz, s.nx, s.ny,
-                                  s.nz, v.vx, v.vy, v.vz, (floatV)1.0f, s.spec_p, s.depth, px0 + LANES, py, shadow_out,
-                                  p0, valid, npix, &dr, &dg, &db, &sr, &sg, &sb);
+                                  s.nz, v.vx, v.vy, v.vz, &m, s.depth, px0 + LANES, py, shadow_out,
+                                  p0, valid, npix, &dr, &dg, &db, &sr, &sg, &sb, &tr, &tg, &tb);
     const floatV zero = 0.0f;
     lb_store(light_buf, 0, npix, p0, valid, select(zero, dr, fg));
     lb_store(light_buf, 1, npix, p0, valid, select(zero, dg, fg));
@@ -98,8 +110,16 @@ void light_buffer(global const uint* gbuffer, int width, int height, float far, 
     lb_store(light_buf, 3, npix, p0, valid, select(zero, sr, fg));
     lb_store(light_buf, 4, npix, p0, valid, select(zero, sg, fg));
     lb_store(light_buf, 5, npix, p0, valid, select(zero, sb, fg));
+#if LB_GLTF
+    lb_store(light_buf, 6, npix, p0, valid, select(zero, tr, fg));
+    lb_store(light_buf, 7, npix, p0, valid, select(zero, tg, fg));
+    lb_store(light_buf, 8, npix, p0, valid, select(zero, tb, fg));
+#endif
 #else
     lb_store(light_buf, 3, npix, p0, valid, select(zero, 0.2126f * sr + 0.7152f * sg + 0.0722f * sb, fg));
+#if LB_GLTF
+    lb_store(light_buf, 4, npix, p0, valid, select(zero, 0.2126f * tr + 0.7152f * tg + 0.0722f * tb, fg));
+#endif
 #endif
     store_light_counts(light_count, light_pairs, npix, p0, valid, count, evaluated, useful);
 }

@@ -26,6 +26,7 @@
 #define CLRENDER_LIGHTING_H
 #include "structs.h"
 #include "vec.h"
+#include "brdf.h"
 
 #ifndef BRUTE_FORCE
 #define BRUTE_FORCE 0
@@ -198,14 +199,30 @@ static inline intV light_reach(const Light* lt, floatV px, floatV py_, floatV pz
     return reach;
 }
 
+/* The glTF lanes' terms of a light of colour c reaching them with k = A·max(N·L, 0) (`diff`):
+ * diff and spec become k·(1 − w)/π and k·D·V·(1 − w) there (the caller adds them × c like the
+ * Blinn-Phong ones), and k·D·V·w·c goes to T (brdf.h). */
+static inline void add_gltf_terms(const BrdfV* m, floatV k, floatV ndotl, floatV ndoth, floatV vdoth, float cr,
+                                  float cg, float cb, floatV* diff, floatV* spec, floatV* tr, floatV* tg, floatV* tb)
+{
+    floatV kd, ks, kt;
+    gltf_light_terms(m, ndotl, ndoth, vdoth, &kd, &ks, &kt);
+    const intV lit = m->gltf & (ndotl > 0.0f);
+    *diff = select(*diff, k * kd, m->gltf);
+    *spec = select(*spec, select((floatV)0.0f, k * ks, lit), m->gltf);
+    const floatV t = select((floatV)0.0f, k * kt, lit);
+    *tr += t * cr; *tg += t * cg; *tb += t * cb;
+}
+
 /* One light's terms added at the lanes it lights. `take` (STENCIL): the lanes whose stencil
  * bit is set, which replaces the distance test; otherwise the test is made on the lanes in
  * fg. `useful` (may be null): +1 on the lanes the light reaches (light_reach()). */
 static inline void add_light(const LightEnv* env, const Light lt, intV fg, intV take,
                              floatV px, floatV py_, floatV pz, floatV nx, floatV ny, floatV nz,
-                             floatV vx, floatV vy, floatV vz, floatV spec_i, floatV spec_p,
+                             floatV vx, floatV vy, floatV vz, const BrdfV* m,
                              intV pix_x, int pix_y, global float* shadow_out, int p0, int valid, int npix,
-                             intV* useful, floatV* dr, floatV* dg, floatV* db, floatV* sr, floatV* sg, floatV* sb)
+                             intV* useful, floatV* dr, floatV* dg, floatV* db, floatV* sr, floatV* sg, floatV* sb,
+                             floatV* tr, floatV* tg, floatV* tb)
 {
     floatV lx, ly, lz;
     floatV d2 = light_vector(&lt, px, py_, pz, &lx, &ly, &lz);
@@ -218,8 +235,15 @@ static inline void add_light(const LightEnv* env, const Light lt, intV fg, intV 
     if (!ANY(near_enough)) return;
     intV reach = near_enough;
 #endif
-    floatV q = 1.0f - d2 / r2;
-    floatV atten = select((floatV)0.0f, q * q * q, near_enough);
+    floatV atten;
+    if (lt.falloff == LIGHT_FALLOFF_REPORT) {
+        floatV q = 1.0f - d2 / r2;
+        atten = select((floatV)0.0f, q * q * q, near_enough);
+    } else {                               /* KHR_lights_punctual: I/d², the range window */
+        floatV q = d2 / r2, win = clamp(1.0f - q * q, 0.0f, 1.0f);
+        if (lt.falloff == LIGHT_FALLOFF_INVERSE_SQUARE_UNBOUNDED) win = 1.0f;
+        atten = select((floatV)0.0f, win * win / fmax(d2, 1e-8f), near_enough);
+    }
     floatV inv_l = rsqrt(fmax(d2, 1e-30f));
     lx *= inv_l; ly *= inv_l; lz *= inv_l;
     if (lt.type == LIGHT_SPOT) {
@@ -249,9 +273,12 @@ static inline void add_light(const LightEnv* env, const Light lt, intV fg, intV 
     floatV hx = lx + vx, hy = ly + vy, hz = lz + vz;
     floatV inv_h = rsqrt(fmax(hx * hx + hy * hy + hz * hz, 1e-30f));
     floatV ndoth = fmax((nx * hx + ny * hy + nz * hz) * inv_h, 0.0f);
-    floatV spec = select((floatV)0.0f, spec_i * spec_powV(ndoth, spec_p), ndotl > 0.0f);
+    floatV spec = select((floatV)0.0f, m->spec_i * spec_powV(ndoth, m->spec_p), ndotl > 0.0f);
     floatV diff = atten * fmax(ndotl, 0.0f);
     spec *= atten;
+    if (m->any_gltf)
+        add_gltf_terms(m, diff, ndotl, ndoth, (vx * hx + vy * hy + vz * hz) * inv_h, lt.color[0], lt.color[1],
+                       lt.color[2], &diff, &spec, tr, tg, tb);
     *dr += diff * lt.color[0]; *dg += diff * lt.color[1]; *db += diff * lt.color[2];
     *sr += spec * lt.color[0]; *sg += spec * lt.color[1]; *sb += spec * lt.color[2];
 }
@@ -287,9 +314,10 @@ static inline uint or_lanes(uintV w)
 static void accumulate_lights_counted(const LightEnv* env, int first, int count, intV fg,
                                       global const uint* stencil, int stencil_words, intV* evaluated, intV* useful,
                                       floatV px, floatV py_, floatV pz, floatV nx, floatV ny, floatV nz,
-                                      floatV vx, floatV vy, floatV vz, floatV spec_i, floatV spec_p, floatV depth,
+                                      floatV vx, floatV vy, floatV vz, const BrdfV* m, floatV depth,
                                       intV pix_x, int pix_y, global float* shadow_out, int p0, int valid, int npix,
-                                      floatV* dr, floatV* dg, floatV* db, floatV* sr, floatV* sg, floatV* sb)
+                                      floatV* dr, floatV* dg, floatV* db, floatV* sr, floatV* sg, floatV* sb,
+                                      floatV* tr, floatV* tg, floatV* tb)
 {
 #if STENCIL
     const int words = min((count + 31) / 32, stencil_words);
@@ -309,8 +337,8 @@ static void accumulate_lights_counted(const LightEnv* env, int first, int count,
             const intV take = fg & ((word & (1u << j)) != 0u);
             if (evaluated) *evaluated += select((intV)0, (intV)1, take);
             add_light(env, env->lights[env->tile_lights[first + 32 * w + j]], fg, take, px, py_, pz, nx, ny, nz,
-                      vx, vy, vz, spec_i, spec_p, pix_x, pix_y, shadow_out, p0, valid, npix, useful,
-                      dr, dg, db, sr, sg, sb);
+                      vx, vy, vz, m, pix_x, pix_y, shadow_out, p0, valid, npix, useful,
+                      dr, dg, db, sr, sg, sb, tr, tg, tb);
         }
     }
 #else
@@ -321,8 +349,8 @@ static void accumulate_lights_counted(const LightEnv* env, int first, int count,
 #else
         const Light lt = env->lights[env->tile_lights[first + k]];
 #endif
-        add_light(env, lt, fg, fg, px, py_, pz, nx, ny, nz, vx, vy, vz, spec_i, spec_p, pix_x, pix_y,
-                  shadow_out, p0, valid, npix, useful, dr, dg, db, sr, sg, sb);
+        add_light(env, lt, fg, fg, px, py_, pz, nx, ny, nz, vx, vy, vz, m, pix_x, pix_y,
+                  shadow_out, p0, valid, npix, useful, dr, dg, db, sr, sg, sb, tr, tg, tb);
     }
 #endif
     if (env->has_sun) {                    /* the sun: every foreground pixel, no falloff */
@@ -347,8 +375,12 @@ static void accumulate_lights_counted(const LightEnv* env, int first, int count,
         floatV hx = lx + vx, hy = ly + vy, hz = lz + vz;
         floatV inv_h = rsqrt(fmax(hx * hx + hy * hy + hz * hz, 1e-30f));
         floatV ndoth = fmax((nx * hx + ny * hy + nz * hz) * inv_h, 0.0f);
-        floatV spec = select((floatV)0.0f, vis * spec_i * spec_powV(ndoth, spec_p), ndotl > 0.0f);
+        floatV spec = select((floatV)0.0f, vis * m->spec_i * spec_powV(ndoth, m->spec_p), ndotl > 0.0f);
         floatV diff = vis * fmax(ndotl, 0.0f);
+        if (m->any_gltf) {
+            add_gltf_terms(m, diff, ndotl, ndoth, (vx * hx + vy * hy + vz * hz) * inv_h, sun[3], sun[4], sun[5],
+                           &diff, &spec, tr, tg, tb);
+        }
         *dr += diff * sun[3]; *dg += diff * sun[4]; *db += diff * sun[5];
         *sr += spec * sun[3]; *sg += spec * sun[4]; *sb += spec * sun[5];
     }
@@ -359,11 +391,12 @@ static void accumulate_lights_counted(const LightEnv* env, int first, int count,
  * where visibilities go. */
 static void accumulate_lights(const LightEnv* env, int first, int count, intV fg,
                               floatV px, floatV py_, floatV pz, floatV nx, floatV ny, floatV nz,
-                              floatV vx, floatV vy, floatV vz, floatV spec_i, floatV spec_p, floatV depth,
+                              floatV vx, floatV vy, floatV vz, const BrdfV* m, floatV depth,
                               intV pix_x, int pix_y, global float* shadow_out, int p0, int valid, int npix,
-                              floatV* dr, floatV* dg, floatV* db, floatV* sr, floatV* sg, floatV* sb)
+                              floatV* dr, floatV* dg, floatV* db, floatV* sr, floatV* sg, floatV* sb,
+                              floatV* tr, floatV* tg, floatV* tb)
 {
-    accumulate_lights_counted(env, first, count, fg, 0, 0, 0, 0, px, py_, pz, nx, ny, nz, vx, vy, vz, spec_i,
-                              spec_p, depth, pix_x, pix_y, shadow_out, p0, valid, npix, dr, dg, db, sr, sg, sb);
+    accumulate_lights_counted(env, first, count, fg, 0, 0, 0, 0, px, py_, pz, nx, ny, nz, vx, vy, vz, m,
+                              depth, pix_x, pix_y, shadow_out, p0, valid, npix, dr, dg, db, sr, sg, sb, tr, tg, tb);
 }
 #endif

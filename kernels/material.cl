@@ -48,6 +48,10 @@
 #ifndef SSAO
 #define SSAO 0
 #endif
+#ifndef LB_GLTF
+#define LB_GLTF 0    /* the light buffer holds the glTF BRDF's third sum T (light_buffer.cl) */
+#endif
+#include "ambient.h"
 #if LB_HALF
 typedef half lb_t;
 #define LB_LOAD(plane, i) vload_halfV(0, light_buf + (plane) * npix + (i))
@@ -70,6 +74,7 @@ typedef float lb_t;
 kernel void material(global const int* vis_prim, int width, int height, SCENE_PARAMS(prims),
                      constant float2* srgb_encode, global const lb_t* light_buf, float ambient, global const float* ao,
                      int sample, int samples, int sample_x, int sample_y, int write_aov,
+                     global const float* camera, int has_env, int env_background, ENV_PARAMS,
                      global const int* aov_prim, global const Prim* aov_prims, global float* color,
                      global float* spread, global uint* gbuffer)
 {
@@ -92,6 +97,7 @@ kernel void material(global const int* vis_prim, int width, int height, SCENE_PA
 #endif
     floatV cr = 0.0f, cg = 0.0f, cb = 0.0f;
     uintV w_alb = 0u, w_eo = 0u;
+    const EnvMaps envmaps = ENV_INIT;
     if (ANY(fg)) {
         const SurfaceV sf = surface_at_offset(&scene, select((intV)0, pidx, fg), fg, px, py, -sample_x, -sample_y);
         w_alb = (pack_srgb8x3V(sf.r, sf.g, sf.b, srgb_encode) << GB_ALBEDO_SHIFT)
@@ -101,25 +107,53 @@ kernel void material(global const int* vis_prim, int width, int height, SCENE_PA
         const SurfaceExtrasV x = material_extras(w_eo, sf.mat, fg, materials, srgb_lut);
         floatV ar, ag, ab, spec_i;
         decode_albedo(w_alb, srgb_lut, &ar, &ag, &ab, &spec_i);
-        floatV dr, dg, db, sr, sg, sb;
+        floatV dr, dg, db, sr, sg, sb, tr = 0.0f, tg = 0.0f, tb = 0.0f;
         LB_RUN(dr, 0) LB_RUN(dg, 1) LB_RUN(db, 2)
 #if SPECULAR_RGB
         LB_RUN(sr, 3) LB_RUN(sg, 4) LB_RUN(sb, 5)
+#if LB_GLTF
+        LB_RUN(tr, 6) LB_RUN(tg, 7) LB_RUN(tb, 8)
+#endif
 #else
         floatV s_lum;
         LB_RUN(s_lum, 3)
         const floatV d_lum = 0.2126f * dr + 0.7152f * dg + 0.0722f * db;
         const floatV k = select((floatV)0.0f, s_lum / d_lum, d_lum > 0.0f);   /* the diffuse light's colour */
         sr = k * dr; sg = k * dg; sb = k * db;
+#if LB_GLTF
+        floatV t_lum;
+        LB_RUN(t_lum, 4)
+        const floatV kt = select((floatV)0.0f, t_lum / d_lum, d_lum > 0.0f);
+        tr = kt * dr; tg = kt * dg; tb = kt * db;
+#endif
 #endif
 #if SSAO
-        const floatV ambient_ao = ambient * as_floatV(load_plane((global const uint*)ao, pix0, valid, 0u));
+        const floatV ao_v = as_floatV(load_plane((global const uint*)ao, pix0, valid, 0u));
+        const floatV ambient_ao = ambient * ao_v;
 #else
-        const float ambient_ao = ambient;
+        const floatV ao_v = 1.0f;
+        const floatV ambient_ao = ambient;
 #endif
-        cr = select((floatV)0.0f, compose_extras(ar, ambient_ao, dr, spec_i * sr, x.er, x.occlusion, x.unlit), fg);
-        cg = select((floatV)0.0f, compose_extras(ag, ambient_ao, dg, spec_i * sg, x.eg, x.occlusion, x.unlit), fg);
-        cb = select((floatV)0.0f, compose_extras(ab, ambient_ao, db, spec_i * sb, x.eb, x.occlusion, x.unlit), fg);
+        /* Blinn-Phong lanes: the light buffer's S was summed with intensity 1 (light_buffer.cl). */
+        const intV gltf = gltf_lanes(sf.mat_flags, fg);
+        BrdfV m = { gltf, ANY(gltf) ? 1 : 0 };
+        AmbientV amb;
+        if (has_env) {                  /* the material's own roughness, N and V at the pixel centre */
+            floatV vx, vy, vz;
+            view_vectors(camera, width, height, px, py, &vx, &vy, &vz);
+            m = brdf_inputs(gltf, spec_i, sf.spec_p, sf.n.x, sf.n.y, sf.n.z, vx, vy, vz);
+            amb = ambient_light(1, &envmaps, &m, ambient_ao, ao_v, sf.n.x, sf.n.y, sf.n.z, vx, vy, vz);
+        } else {
+            amb = constant_ambient(ambient_ao);
+        }
+        compose_lit(&m, fg, ar, ag, ab, spec_i, &amb, 1, x.er, x.eg, x.eb, x.occlusion, x.unlit, dr, dg, db,
+                    select(spec_i * sr, sr, gltf), select(spec_i * sg, sg, gltf), select(spec_i * sb, sb, gltf),
+                    tr, tg, tb, &cr, &cg, &cb);
+    }
+    if (has_env && env_background && ANY(!fg)) {   /* the environment behind the geometry */
+        floatV vx, vy, vz;
+        view_vectors(camera, width, height, px, py, &vx, &vy, &vz);
+        environment_background(1, 1, &envmaps, fg, vx, vy, vz, &cr, &cg, &cb);
     }
     if (write_aov) {
         uintV planes[GB_PLANES];

@@ -3,7 +3,9 @@
  *
  * Per lane: base colour = factor × vertex colour × base texture; metallic-roughness
  * (MAT_METALLIC_ROUGHNESS) mapped into the report's terms: albedo = base·(1 − m), specular
- * intensity = mix(0.04, luminance(base), m), power = clamp(2/r⁴ − 2, 1, 2048); a tangent-space
+ * intensity = mix(0.04, luminance(base), m), power = clamp(2/r⁴ − 2, 1, 2048), except on materials
+ * shaded with the glTF BRDF (MAT_GLTF_BRDF), which keep base colour, metallic and roughness in the
+ * albedo, specular intensity and power fields (brdf.h, clrender/gbuffer.py); a tangent-space
  * normal map rotating the unit normal through the Gram-Schmidt TBN frame; occlusion =
  * 1 + strength·(R − 1); emissive = factor × texture; unlit: albedo = base, no specular.
  * Every texture slot reads its own uv set through its KHR_texture_transform matrix, with the
@@ -14,8 +16,7 @@
 #ifndef CLRENDER_MATERIAL_EVAL_H
 #define CLRENDER_MATERIAL_EVAL_H
 
-#define DIELECTRIC_F0 0.04f
-#define MIN_ROUGHNESS 0.01f       /* clrender/scene.py MIN_ROUGHNESS */
+#include "brdf.h"              /* DIELECTRIC_F0, MIN_ROUGHNESS (clrender/scene.py), gltf_lanes */
 
 /* The lanes `on` whose material has a texture in slot `slot` (*tex: its index, per lane). */
 static inline intV slot_lanes(const SceneV* sc, intV mat, int slot, intV on, intV* tex)
@@ -184,6 +185,12 @@ static void evaluate_material(const SceneV* sc, const BaryV* b, intV fg, Surface
         const floatV kd = 1.0f - m;
         spec_i = select(spec_i, si, mr); spec_p = select(spec_p, sp, mr);
         ar = select(ar, cr * kd, mr); ag = select(ag, cg * kd, mr); ab = select(ab, cb * kd, mr);
+        /* The glTF BRDF's lanes keep what it needs: base colour, metallic, roughness (brdf.h). */
+        const intV gltf = gltf_lanes(flags, mr);
+        if (ANY(gltf)) {
+            spec_i = select(spec_i, clamp(m, 0.0f, 1.0f), gltf); spec_p = select(spec_p, clamp(r, 0.0f, 1.0f), gltf);
+            ar = select(ar, cr, gltf); ag = select(ag, cg, gltf); ab = select(ab, cb, gltf);
+        }
     }
     intV unlit = fg & ((flags & (int)MAT_UNLIT) != 0);
 #if VEC == 1

@@ -60,6 +60,7 @@ kernel void update_particles(global Light* lights, int first, int count, uint se
     l.type = LIGHT_POINT;
     l.direction[0] = 0.0f; l.direction[1] = 0.0f; l.direction[2] = -1.0f;
     l.cos_outer = 0.0f; l.cos_inner = 0.0f;
-    l.shadow_size = 0; l.shadow = -1; l.pad = 0.0f;     /* particles cast no shadow */
+    l.shadow_size = 0; l.shadow = -1;     /* particles cast no shadow */
+    l.falloff = LIGHT_FALLOFF_REPORT;      /* the report's window, like every light made by the API */
     lights[first + i] = l;
 }

@@ -55,6 +55,7 @@
 #endif
 #include "lighting.h"
 #include "gbuffer_decode.h"
+#include "ambient.h"
 
 kernel __attribute__((reqd_work_group_size(LTILE / VEC, LTILE, 1)))
 void shade(global const uint* gbuffer, int width, int height, float far, global const float* camera,
@@ -66,8 +67,8 @@ void shade(global const uint* gbuffer, int width, int height, float far, global 
            float shadow_bias, float shadow_slope_bias, float shadow_normal_offset,
            int has_sun, global const float* sun, int sun_cascades, int spot_view0, int spot_plane0,
            global const uint* stencil, int stencil_words,
-           int surface_extras, global const int* tri_material, global const Material* materials,
-           global float* color, global int* light_count, global float* shadow_out, global int* light_pairs)
+           int surface_extras, global const int* tri_material, global const Material* materials, int gltf_scene,
+           int has_env, int env_background, ENV_PARAMS, global float* color, global int* light_count, global float* shadow_out, global int* light_pairs)
 {
     const int px0 = get_global_id(0) * VEC, py = get_global_id(1);
     if (py >= height || px0 >= width) return;
@@ -79,38 +80,42 @@ void shade(global const uint* gbuffer, int width, int height, float far, global 
     /* Decode the G-buffer; the world position on the pixel's view ray, V towards the eye. */
     const intV tri = as_intV(load_plane(gbuffer + GB_TRIANGLE_ID_PLANE * npix, p0, valid, 0xffffffffu));
     const intV fg = tri >= 0;
+    const intV gltf = gltf_lanes_of(tri, fg, gltf_scene, tri_material, materials);
     const LitPointV s = decode_lit_point(load_plane(gbuffer + GB_NORMAL_PLANE * npix, p0, valid, 0u),
-                                         load_plane(gbuffer + GB_LINEAR_DEPTH_PLANE * npix, p0, valid, 0u), fg, far);
+                                         load_plane(gbuffer + GB_LINEAR_DEPTH_PLANE * npix, p0, valid, 0u), fg, far,
+                                         gltf);
     floatV ar, ag, ab, spec_i;
     decode_albedo(load_plane(gbuffer + GB_ALBEDO_PLANE * npix, p0, valid, 0u), srgb_lut, &ar, &ag, &ab, &spec_i);
     const ViewPointV v = view_point(camera, width, height, px0, py, s.depth);
+    const BrdfV m = brdf_inputs(gltf, spec_i, s.spec_p, s.nx, s.ny, s.nz, v.vx, v.vy, v.vz);
 
-    floatV dr = 0.0f, dg = 0.0f, db = 0.0f, sr = 0.0f, sg = 0.0f, sb = 0.0f;
+    floatV dr = 0.0f, dg = 0.0f, db = 0.0f, sr = 0.0f, sg = 0.0f, sb = 0.0f, tr = 0.0f, tg = 0.0f, tb = 0.0f;
     const int2 range = tile_light_range(tile_light_offsets, tile_light_counts, list_capacity, tile, n_lights);
     const int first = range.x, count = range.y;
     const LightEnv env = LIGHT_ENV_INIT;
     intV evaluated = 0, useful = 0;           /* (pixel, light) pairs: walked, reached (light_pairs) */
     if (ANY(fg))
         accumulate_lights_counted(&env, first, count, fg, stencil, stencil_words, &evaluated, &useful,
-                                  v.px, v.py, v.pz, s.nx, s.ny, s.nz, v.vx, v.vy, v.vz, spec_i, s.spec_p, s.depth,
-                                  px0 + LANES, py, shadow_out, p0, valid, npix, &dr, &dg, &db, &sr, &sg, &sb);
+                                  v.px, v.py, v.pz, s.nx, s.ny, s.nz, v.vx, v.vy, v.vz, &m, s.depth,
+                                  px0 + LANES, py, shadow_out, p0, valid, npix, &dr, &dg, &db, &sr, &sg, &sb,
+                                  &tr, &tg, &tb);
 #if SSAO
-    floatV ambient_ao = ambient * as_floatV(load_plane((global const uint*)ao, p0, valid, 0u));
+    const floatV ao_v = as_floatV(load_plane((global const uint*)ao, p0, valid, 0u));
+    floatV ambient_ao = ambient * ao_v;
 #else
-    const float ambient_ao = ambient;
+    const floatV ao_v = 1.0f;
+    const floatV ambient_ao = ambient;
 #endif
+    const EnvMaps envmaps = ENV_INIT;
+    const AmbientV amb = ambient_light(has_env, &envmaps, &m, ambient_ao, ao_v, s.nx, s.ny, s.nz, v.vx, v.vy, v.vz);
+    SurfaceExtrasV x;
+    if (surface_extras)            /* emission, occlusion, unlit (docs/materials.md) */
+        x = decode_extras(load_plane(gbuffer + GB_EMISSIVE_PLANE * npix, p0, valid, 0u), tri, fg,
+                          tri_material, materials, srgb_lut);
     floatV cr, cg, cb;
-    if (surface_extras) {            /* emission, occlusion, unlit (docs/materials.md) */
-        const SurfaceExtrasV x = decode_extras(load_plane(gbuffer + GB_EMISSIVE_PLANE * npix, p0, valid, 0u), tri, fg,
-                                               tri_material, materials, srgb_lut);
-        cr = select((floatV)0.0f, compose_extras(ar, ambient_ao, dr, sr, x.er, x.occlusion, x.unlit), fg);
-        cg = select((floatV)0.0f, compose_extras(ag, ambient_ao, dg, sg, x.eg, x.occlusion, x.unlit), fg);
-        cb = select((floatV)0.0f, compose_extras(ab, ambient_ao, db, sb, x.eb, x.occlusion, x.unlit), fg);
-    } else {
-        cr = select((floatV)0.0f, ar * (ambient_ao + dr) + sr, fg);
-        cg = select((floatV)0.0f, ag * (ambient_ao + dg) + sg, fg);
-        cb = select((floatV)0.0f, ab * (ambient_ao + db) + sb, fg);
-    }
+    compose_lit(&m, fg, ar, ag, ab, spec_i, &amb, surface_extras, x.er, x.eg, x.eb, x.occlusion, x.unlit,
+                dr, dg, db, sr, sg, sb, tr, tg, tb, &cr, &cg, &cb);
+    environment_background(has_env, env_background, &envmaps, fg, v.vx, v.vy, v.vz, &cr, &cg, &cb);
     store_plane(color, p0, valid, cr);
     store_plane(color + npix, p0, valid, cg);
     store_plane(color + 2 * npix, p0, valid, cb);

@@ -16,6 +16,8 @@
 #define MAT_METALLIC_ROUGHNESS 8u   /* metallic/roughness mapped per pixel (docs/materials.md) */
 #define MAT_UNLIT        16u        /* KHR_materials_unlit: colour = base colour */
 #define MAT_SHARES(slot) (32u << ((slot) - 1))   /* slot 1..4 reads the base colour's footprint (material_eval.h) */
+#define MAT_GLTF_BRDF    512u       /* shaded with the glTF 2.0 BRDF (brdf.h; set on metallic-roughness
+                                       materials unless RenderConfig.shading = "blinn_phong") */
 
 /* Setup status per input triangle (a byte); STATUS_CLIPPED is or-ed in. */
 #define STATUS_EMITTED    0
@@ -102,6 +104,13 @@ typedef struct {
 #define LIGHT_POINT 0
 #define LIGHT_SPOT  1
 
+/* Light.falloff: the report's (1 - (d/r)^2)^3, or KHR_lights_punctual's inverse square (intensity
+ * in candela) with the extension's range window, or without it (a light with no range: culled at
+ * its radius, where I/d^2 has fallen below 1/256 of I; clrender/loaders/lights.py). */
+#define LIGHT_FALLOFF_REPORT 0
+#define LIGHT_FALLOFF_INVERSE_SQUARE 1
+#define LIGHT_FALLOFF_INVERSE_SQUARE_UNBOUNDED 2
+
 /* A punctual light with a finite radius of influence (the report's attenuation reaches 0 at
  * `radius`). Spot lights fade from cos_inner to cos_outer around `direction` (unit). */
 typedef struct {
@@ -114,7 +123,7 @@ typedef struct {
     float cos_inner;
     int   shadow_size;   /* requested shadow map side in texels, 0 = casts no shadow (Scene) */
     int   shadow;        /* index among the shadowed spot lights, -1 = none (set at upload) */
-    float pad;
+    int   falloff;       /* LIGHT_FALLOFF_*: how A depends on the distance (lighting.h) */
 } Light;
 
 /* One shadow map: a light's view rendered by setup/binning/raster into a square region of

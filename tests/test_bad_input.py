@@ -392,13 +392,18 @@ CORRUPT_PNG = b"\x89PNG\r\n\x1a\n" + b"\x00\x00\x00\x0dIHDR" + b"garbage" * 10
 def test_corrupt_texture_files(tmp_path):
     (tmp_path / "bad.png").write_bytes(CORRUPT_PNG)
     (tmp_path / "empty.png").write_bytes(b"")
-    for name in ("bad.png", "empty.png"):
-        msg = assert_scene_error(tiny_gltf(tmp_path / f"t_{name}.gltf", image_uri=name), ["decode"])
-        assert name in msg or "image" in msg, msg
+    # glTF: an unreadable or missing image is a one-line warning naming it; the material renders
+    # with its factors (issue: "the render goes on")
+    from clrender import load_scene
+    for name in ("bad.png", "empty.png", "nothere.png"):
+        with pytest.warns(UserWarning, match=name) as caught:
+            scene = load_scene(tiny_gltf(tmp_path / f"t_{name}.gltf", image_uri=name))
+        assert len([w for w in caught if name in str(w.message)]) == 1
+        assert all(m.base_color_texture == -1 for m in scene.materials)
+        assert "\n" not in str(caught[0].message)
     (tmp_path / "m.mtl").write_text("newmtl m\nKd 1 1 1\nmap_Kd bad.png\n")
     (tmp_path / "m.obj").write_text("mtllib m.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl m\nf 1 2 3\n")
     assert_scene_error(tmp_path / "m.obj", ["decode"])
-    assert_scene_error(tiny_gltf(tmp_path / "missing.gltf", image_uri="nothere.png"), ["nothere.png"])
 
 
 @pytest.mark.parametrize("body, words", [

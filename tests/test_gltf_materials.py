@@ -26,6 +26,18 @@ from clrender.loaders import load_scene  # noqa: E402
 from clrender.scene import Material, SceneError, UVTransform  # noqa: E402
 from clrender.tangents import generate_tangents  # noqa: E402
 
+
+@pytest.fixture
+def make_renderer(make_renderer):
+    """These tests check the report's Blinn-Phong mapping of metallic-roughness materials
+    (docs/materials.md), so they render with shading="blinn_phong"; the glTF BRDF that
+    shading="auto" uses has its own reference in tests/test_brdf.py."""
+    def factory(width, height, **opts):
+        opts.setdefault("shading", "blinn_phong")
+        return make_renderer(width, height, **opts)
+    return factory
+
+
 SHARED = Path(__file__).resolve().parents[1].parent / "shared" / "scenes"
 
 

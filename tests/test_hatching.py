@@ -1,6 +1,14 @@
 """Hatching (report IV.3, Praun et al. 2001): the tonal art maps' nesting and tones
 (clrender/tam.py), and kernels/hatching.cl through the Renderer against an independent NumPy
-version of its per-pixel formula (docs/post.md's LDR chain)."""
+version of its per-pixel formula (docs/post.md's LDR chain, "Hatching").
+
+The image must read as a drawing: pixels without geometry (triangle id -1) are the white paper,
+whatever the tone-mapped background holds; foreground pixels on a G-buffer discontinuity with a
+direct neighbour (edge_aa.cl's test: background neighbour, relative depth jump, normal angle;
+inked on the nearer side) are black ink, checked against an independent NumPy mask from the
+Frame's linear_depth / normal / triangle_id; the rest of the objects keep their strokes over
+the desaturated colour. `assert_reads_as_drawing` is shown to reject a black frame, the old
+hatched-everywhere frame, blank paper and strokes without outlines."""
 from __future__ import annotations
 
 import math
@@ -8,9 +16,11 @@ import math
 import numpy as np
 import pytest
 
+import clrender
 from clrender import Camera, Material, Scene, tam
 from clrender.gbuffer import linear_to_srgb8
 from clrender.passes.hatching import mip_levels
+from reference import aa
 from reference.shading import tonemap_curve
 
 LUMA = np.array([0.2126, 0.7152, 0.0722])          # linear Rec. 709 / sRGB luminance
@@ -139,6 +149,99 @@ def hatching_reference(ldr: np.ndarray, scale: float, saturation: float) -> np.n
     return (1.0 + saturation * (ldr - 1.0)) * (1.0 - ink)[..., None]
 
 
+# --- paper and outlines, independently in NumPy ---------------------------------------------------
+
+PAPER, INK = 255, 0
+
+
+def _neighbour(a: np.ndarray, dy: int, dx: int) -> np.ndarray:
+    """a[y + dy, x + dx], coordinates clamped to the image (a border pixel is its own neighbour)."""
+    pad = ((1, 1), (1, 1)) + ((0, 0),) * (a.ndim - 2)
+    p = np.pad(a, pad, mode="edge")
+    h, w = a.shape[:2]
+    return p[1 + dy:1 + dy + h, 1 + dx:1 + dx + w]
+
+
+def outline_masks(linear_depth, normal, triangle_id, depth_threshold=0.05, normal_threshold_deg=30.0):
+    """(ink, ambiguous) (H, W) bool masks of the outline rule: a foreground pixel is ink when one of
+    its 4 direct neighbours (clamped) is background, or is foreground, not nearer (z_n >= z) and
+    either |z_n - z| > t·min(z, z_n) (z = Frame.linear_depth, float32 like the kernel) or the angle
+    between the normals exceeds the threshold. `ambiguous`: pixels with a pair within float
+    round-off of a threshold (decoding and normalizing the normals on the device may round the
+    other way)."""
+    z = np.asarray(linear_depth, np.float32)
+    n = np.asarray(normal, np.float64)
+    n = n / np.maximum(np.linalg.norm(n, axis=-1, keepdims=True), 1e-30)
+    fg = np.asarray(triangle_id) >= 0
+    t32, cos_t = np.float32(depth_threshold), math.cos(math.radians(normal_threshold_deg))
+    ink, ambiguous = np.zeros(fg.shape, bool), np.zeros(fg.shape, bool)
+    h, w = fg.shape
+    ys, xs = np.mgrid[0:h, 0:w]
+    for dy, dx in ((0, -1), (0, 1), (-1, 0), (1, 0)):
+        itself = ((ys + dy < 0) | (ys + dy >= h) | (xs + dx < 0) | (xs + dx >= w))
+        z1, n1, fg1 = _neighbour(z, dy, dx), _neighbour(n, dy, dx), _neighbour(fg, dy, dx)
+        front = fg & fg1 & (z1 >= z) & ~itself
+        with np.errstate(invalid="ignore"):
+            jump = np.abs(z1 - z) > t32 * np.minimum(z, z1)                   # float32, as the kernel
+            rel = np.abs(z1.astype(np.float64) - z) / (depth_threshold * np.minimum(z, z1))
+        cos = (n * n1).sum(-1)
+        ink |= (fg & ~fg1 & ~itself) | (front & jump) | (front & (cos < cos_t))
+        ambiguous |= front & ((np.abs(rel - 1.0) < 1e-4) | (np.abs(cos - cos_t) < 1e-4))
+    return ink, ambiguous & fg
+
+
+def frame_outline(frame, config_kw=None):
+    """outline_masks for a Frame rendered with RenderConfig thresholds `config_kw` (defaults)."""
+    kw = config_kw or {}
+    return outline_masks(frame.linear_depth, frame.normal, frame.triangle_id,
+                         kw.get("edge_depth_threshold", 0.05), kw.get("edge_normal_threshold_deg", 30.0))
+
+
+def expected_image(frame, ldr, scale=1.0, saturation=0.3, config_kw=None):
+    """(expected uint8 image, ink mask, ambiguous mask): paper where triangle_id is -1, ink on the
+    outline, hatching_reference elsewhere."""
+    ink, ambiguous = frame_outline(frame, config_kw)
+    hatched = hatching_reference(ldr, scale, saturation)
+    bg = frame.triangle_id < 0
+    out = np.where(bg[..., None], 1.0, np.where(ink[..., None], 0.0, hatched))
+    return linear_to_srgb8(out), ink, ambiguous
+
+
+def assert_matches_expected(image, frame, ldr, scale=1.0, saturation=0.3, config_kw=None):
+    """Background exactly paper white, (unambiguous) outline pixels exactly ink, the other pixels
+    the NumPy hatching within one 8-bit code; an ambiguous pixel may be either ink or hatched."""
+    expect, ink, ambiguous = expected_image(frame, ldr, scale, saturation, config_kw)
+    bg = frame.triangle_id < 0
+    assert (image[bg] == PAPER).all(), f"{(image[bg] != PAPER).any(-1).sum()} background pixels are not paper"
+    sure_ink = ink & ~ambiguous
+    assert (image[sure_ink] == INK).all(), f"{(image[sure_ink] != INK).any(-1).sum()} outline pixels are not ink"
+    hatched = hatching_reference(ldr, scale, saturation)
+    as_hatched = np.abs(image.astype(int) - linear_to_srgb8(hatched).astype(int)).max(-1) <= 1
+    either = ambiguous & ((image == INK).all(-1) | as_hatched)
+    diff = np.abs(image.astype(int) - expect.astype(int)).max(-1)
+    bad = (diff > 1) & ~either
+    assert not bad.any(), (int(bad.sum()), diff[bad].max(), np.argwhere(bad)[:5])
+    return ink
+
+
+def assert_reads_as_drawing(image, frame, config_kw=None):
+    """What makes the hatched image a drawing, from the Frame's G-buffer AOVs alone: the
+    background is paper, the outline (outline_masks) is ink, and the objects' interiors (foreground,
+    1 pixel away from the outline) keep strokes: inked texels and paper between them, not blank,
+    not solid black."""
+    bg = frame.triangle_id < 0
+    ink, ambiguous = frame_outline(frame, config_kw)
+    assert bg.sum() > 0.05 * bg.size and ink.sum() > 20, "the scene must show background and outlines"
+    assert (image[bg] == PAPER).all(), "the background is not white paper"
+    sure_ink = ink & ~ambiguous
+    assert (image[sure_ink] == INK).all(), "an outline pixel is not ink"
+    interior = ~bg & ~aa.dilate(ink | bg, 1)
+    assert interior.sum() > 0.1 * interior.size
+    grey = image[interior].astype(np.float64).mean(-1)
+    assert (grey < 200).mean() > 0.1, "the objects are not hatched (blank paper)"
+    assert (grey > 60).mean() > 0.1, "the objects are solid ink (no paper between the strokes)"
+
+
 def coloured_scene() -> Scene:
     from test_supersample import hard_edged_scene
     return hard_edged_scene()
@@ -150,17 +253,130 @@ COLOURED_CAMERA = Camera.look_at((0, 0, 0), (0, 0, -1), fov_y_deg=70.0, near=0.1
 @pytest.mark.parametrize("scale,saturation", [(1.0, 0.3), (0.7, 0.0), (2.5, 1.0), (0.25, 0.3), (1e-3, 0.5)])
 def test_matches_numpy_formula(make_renderer, scale, saturation):
     """Frame.image equals the NumPy formula applied to the tone-mapped Frame.color, within one
-    8-bit code; scales cover level 0, trilinear levels 0-1, magnification, level 2 and the 1×1 level."""
-    w, h = 71, 43                                    # not a multiple of VEC: the tail path too
+    8-bit code, on the objects; the background (the top and bottom strips: the wall ends) is
+    paper and the outlines ink (until the outlines, this test compared every pixel with the
+    formula, which hatched the empty background black: tone 6). Scales cover level 0, trilinear
+    levels 0-1, magnification, level 2 and the 1×1 level."""
+    w, h = 71, 43                                    # not a multiple of VEC: the row tails too
     frame = make_renderer(w, h, hatching=True, hatching_scale=scale, hatching_saturation=saturation).render(
         coloured_scene(), COLOURED_CAMERA)
     ldr = tonemap_curve(frame.color, "reinhard")
+    ink = assert_matches_expected(frame.image, frame, ldr, scale, saturation)
+    bg = frame.triangle_id < 0
+    assert bg.sum() > 100 and ink.sum() > 50, (bg.sum(), ink.sum())
     expect = linear_to_srgb8(hatching_reference(ldr, scale, saturation))
-    diff = np.abs(frame.image.astype(int) - expect.astype(int))
-    assert diff.max() <= 1, (diff.max(), np.argwhere(diff > 1)[:5])
     plain = linear_to_srgb8(ldr)
-    assert np.abs(expect.astype(int) - plain.astype(int)).mean() > 10, "hatching changes the image"
+    fg = ~bg & ~ink
+    assert np.abs(expect[fg].astype(int) - plain[fg].astype(int)).mean() > 10, "hatching changes the image"
     assert "hatching_ms" in frame.stats and "encode_ms" in frame.stats
+
+
+# aa_scene (tests/reference/aa.py): flat shapes at several depths, a back wall leaving the right
+# part of the frame empty, and a folded roof whose faces meet with continuous depth and a 60°
+# normal change (an edge only for the normal test); ambient light only (colour = albedo).
+AA_TONEMAP = dict(tonemap="clamp")
+
+
+@pytest.mark.parametrize("config_kw", [{}, dict(edge_depth_threshold=0.8, edge_normal_threshold_deg=70.0),
+                                       dict(supersample=2), dict(bloom=True, bloom_threshold=0.3, bloom_strength=2.0)])
+def test_paper_background_and_ink_outlines(device, config_kw):
+    """On aa_scene at an odd size: background exactly paper, the NumPy outline mask exactly ink,
+    the rest the hatching formula; the roof's ridge is inked only when the normal threshold is
+    below its 60° fold; with over-sampling the pass reads the resolved G-buffer; with a bloom
+    that lights the background (a stand-in for an environment behind the objects) the background
+    stays paper."""
+    w, h = 61, 45
+    scene, cam = aa.aa_scene(w / h), aa.aa_camera()
+    frame = clrender.Renderer(w, h, device=device.id, hatching=True, **AA_TONEMAP, **config_kw).render(scene, cam)
+    ldr = np.clip(frame.color.astype(np.float64), 0.0, 1.0)
+    depth_t = config_kw.get("edge_depth_threshold", 0.05)
+    normal_t = config_kw.get("edge_normal_threshold_deg", 30.0)
+    rel_margin, angle_margin = aa.threshold_margin(frame.depth, frame.normal, frame.triangle_id, depth_t, normal_t)
+    assert rel_margin > 0.1 and angle_margin > 5.0, "a neighbour pair sits on a threshold"
+    ink = assert_matches_expected(frame.image, frame, ldr, config_kw=config_kw)
+    assert_reads_as_drawing(frame.image, frame, config_kw)
+    bg = frame.triangle_id < 0
+    if config_kw.get("bloom"):
+        assert ldr[bg].max() > 0.05, "the bloom must reach the background for this case to mean anything"
+    # every silhouette pixel on the object side is ink, and ink only on foreground pixels
+    silhouette = ~bg & np.any([_neighbour(bg, dy, dx) for dy, dx in ((0, -1), (0, 1), (-1, 0), (1, 0))], 0)
+    assert silhouette.sum() > 50 and (frame.image[silhouette] == INK).all()
+    assert not (ink & bg).any()
+    # the ridge: cyan pixels beside magenta ones, depth continuous (the roof's interior fold)
+    mats = scene.triangle_material[np.maximum(frame.triangle_id, 0)]
+    names = [m.name for m in scene.materials]
+    cyan, magenta = ~bg & (mats == names.index("cyan")), ~bg & (mats == names.index("magenta"))
+    ridge = (cyan & (_neighbour(magenta, 0, 1) | _neighbour(magenta, 0, -1)) & ~silhouette) | \
+            (magenta & (_neighbour(cyan, 0, 1) | _neighbour(cyan, 0, -1)) & ~silhouette)
+    assert ridge.sum() > 10
+    # what the normal test adds there (the depth test alone inks the roof's ends against the wall);
+    # checked on the mask: a hatched pixel under a stroke's centre can be black too
+    without_normals = outline_masks(frame.linear_depth, frame.normal, frame.triangle_id, depth_t, 180.0)[0]
+    drawn = ridge & ink & ~without_normals
+    assert (frame.image[drawn] == INK).all()
+    if normal_t < 60.0:
+        assert drawn.sum() >= 0.4 * ridge.sum(), "the ridge is drawn (on one side of each pair)"
+    else:
+        assert not drawn.any(), "a 60° fold is no edge at a 70° threshold"
+
+
+def test_environment_background_is_paper(device):
+    """With an environment shown behind the objects (Scene.set_environment, where this tree has
+    it), the background's tone-mapped colour is the sky, not black; the hatched background is
+    still exactly paper and the drawing checks hold."""
+    w, h = 61, 45
+    scene, cam = aa.aa_scene(w / h), aa.aa_camera()
+    if not hasattr(scene, "set_environment"):
+        pytest.skip("this tree has no environment (Scene.set_environment)")
+    scene.set_environment("studio")
+    frame = clrender.Renderer(w, h, device=device.id, hatching=True, **AA_TONEMAP).render(scene, cam)
+    bg = frame.triangle_id < 0
+    assert frame.color[bg].max() > 0.05, "the environment must show in the background"
+    assert (frame.image[bg] == PAPER).all()
+    assert_reads_as_drawing(frame.image, frame)
+
+
+def test_drawing_check_rejects_non_drawings(device):
+    """assert_reads_as_drawing fails for a fully black frame, the old output (hatching over every
+    pixel, the empty background crossed black), blank paper, and strokes without outlines; and
+    assert_matches_expected fails for all of them too."""
+    w, h = 61, 45
+    scene, cam = aa.aa_scene(w / h), aa.aa_camera()
+    frame = clrender.Renderer(w, h, device=device.id, hatching=True, **AA_TONEMAP).render(scene, cam)
+    ldr = np.clip(frame.color.astype(np.float64), 0.0, 1.0)
+    assert_reads_as_drawing(frame.image, frame)
+    bg = frame.triangle_id < 0
+    ink, _ = frame_outline(frame)
+    everywhere = linear_to_srgb8(hatching_reference(ldr, 1.0, 0.3))
+    no_outline = everywhere.copy()
+    no_outline[bg] = PAPER
+    for name, image in (("black", np.zeros_like(frame.image)), ("hatched everywhere", everywhere),
+                        ("blank paper", np.full_like(frame.image, PAPER)), ("no outline", no_outline)):
+        with pytest.raises(AssertionError):
+            assert_reads_as_drawing(image, frame)
+        with pytest.raises(AssertionError):
+            assert_matches_expected(image, frame, ldr)
+    # solid objects: paper background and ink outlines, but no paper between strokes
+    solid = np.where(bg[..., None], PAPER, INK).astype(np.uint8)
+    with pytest.raises(AssertionError, match="solid ink"):
+        assert_reads_as_drawing(solid, frame)
+    assert ink.sum() > 20
+
+
+@pytest.mark.oclgrind
+def test_hatching_kernel_small_frame(device, capfd):
+    """The simulator tier (`pytest -m oclgrind --device oclgrind`): hatching.cl on a 22×15 aa_scene
+    frame (partial runs and work-groups, clamped borders, the normal test on the roof), paper,
+    ink and strokes as above, and no diagnostics from the OpenCL implementation (Oclgrind reports
+    invalid accesses, races and uninitialized reads on stderr)."""
+    from test_oclgrind_tier import assert_no_device_diagnostics
+    w, h = 22, 15
+    scene, cam = aa.aa_scene(w / h), aa.aa_camera()
+    frame = clrender.Renderer(w, h, device=device.id, tile_size=8, light_tile_size=8, hatching=True,
+                              **AA_TONEMAP).render(scene, cam)
+    ink = assert_matches_expected(frame.image, frame, np.clip(frame.color.astype(np.float64), 0.0, 1.0))
+    assert ink.sum() > 10 and (frame.triangle_id < 0).sum() > 10
+    assert_no_device_diagnostics(capfd)
 
 
 # --- a luminance ramp through the renderer ------------------------------------------------------

@@ -47,6 +47,18 @@ from reference.gltf_writer import CLAMP, MIRROR, REPEAT, write_gltf  # noqa: E40
 from helpers import shared_file  # noqa: E402
 
 
+@pytest.fixture
+def make_renderer(make_renderer):
+    """These tests check the report's Blinn-Phong mapping of metallic-roughness materials
+    (docs/materials.md), so they render with shading="blinn_phong"; the glTF BRDF that
+    shading="auto" uses has its own reference in tests/test_brdf.py."""
+    def factory(width, height, **opts):
+        opts.setdefault("shading", "blinn_phong")
+        return make_renderer(width, height, **opts)
+    return factory
+
+
+
 
 # -- synthetic content ----------------------------------------------------------------------------
 def smooth_noise(rng, size: int, cells: int, channels: int) -> np.ndarray:
@@ -712,7 +724,7 @@ def test_gltf_unlit_and_emissive_strength(make_renderer, tmp_path, extension):
     rng = np.random.default_rng(31)
     ext = {"KHR_materials_unlit": {}} if extension == "KHR_materials_unlit" else \
         {"KHR_materials_emissive_strength": {"emissiveStrength": 3.0}}
-    scene = load_scene(quad_gltf(tmp_path, rng, material_extra={"extensions": ext}))
+    scene = load_scene(quad_gltf(tmp_path, rng, material_extra={"extensions": ext}), default_environment=False)
     mat = scene.materials[0]
     scene.lights = scene.lights[:0]
     if extension == "KHR_materials_unlit":
@@ -938,7 +950,7 @@ def test_damaged_helmet(make_renderer):
     and the tone-mapped image is no longer near-white: mean sRGB luminance over the helmet
     < 0.4 (measured 0.128; the old mapping gave 0.686)."""
     from clrender import load_scene
-    scene = load_scene(shared_file("khronos-DamagedHelmet/DamagedHelmet.gltf"))
+    scene = load_scene(shared_file("khronos-DamagedHelmet/DamagedHelmet.gltf"), default_environment=False)
     scene.lights = scene.lights[:0]
     scene.add_point_light(HELMET_CAMERA.eye, (1.0, 1.0, 1.0), 30.0)
     w, h = 320, 240

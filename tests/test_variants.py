@@ -171,8 +171,9 @@ def test_float16_light_buffer(make_renderer):
     diff = np.abs(half.color.astype(np.float64) - full.color)
     assert diff.max() > 0, "halves must round something"
     assert np.all(diff <= 2.0 ** -11 * np.abs(full.color) + 1e-7)
-    assert full.stats["bytes_per_pixel"]["light_buffer"] == 24
-    assert half.stats["bytes_per_pixel"]["light_buffer"] == 12
+    # D, S and the glTF BRDF's T sums, RGB (kernels/brdf.h; 6 planes with shading="blinn_phong")
+    assert full.stats["bytes_per_pixel"]["light_buffer"] == 36
+    assert half.stats["bytes_per_pixel"]["light_buffer"] == 18
 
 
 def test_bytes_per_pixel_stats(make_renderer):
@@ -180,10 +181,12 @@ def test_bytes_per_pixel_stats(make_renderer):
     bpp = {name: make_renderer(64, 48, **opts).render(scene).stats["bytes_per_pixel"] for name, opts in (
         ("deferred", {}), ("indexed", dict(pipeline="light_indexed")),
         ("prepass", dict(pipeline="light_prepass", light_buffer_specular="luminance")),
-        ("msaa4", dict(pipeline="light_prepass", msaa=4)))}
+        ("msaa4", dict(pipeline="light_prepass", msaa=4)),
+        ("prepass_bp", dict(pipeline="light_prepass", light_buffer_specular="luminance", shading="blinn_phong")))}
     assert bpp["deferred"]["gbuffer_geometry_pass"] == 24 and bpp["deferred"]["gbuffer_aov_planes"] == 0
     assert bpp["indexed"]["gbuffer_geometry_pass"] == 8 and bpp["indexed"]["gbuffer_aov_planes"] == 16
-    assert bpp["prepass"]["gbuffer_geometry_pass"] == 16 and bpp["prepass"]["light_buffer"] == 16
+    assert bpp["prepass"]["gbuffer_geometry_pass"] == 16 and bpp["prepass"]["light_buffer"] == 20   # D.rgb, S, T
+    assert bpp["prepass_bp"]["light_buffer"] == 16                                                 # D.rgb, S
     assert bpp["msaa4"]["msaa_visibility"] == 32 and bpp["msaa4"]["msaa_resolve"] == 12
     for b in bpp.values():
         assert b["total"] == sum(v for k, v in b.items() if k != "total")

@@ -15,8 +15,17 @@ SUFFIXES = (".toml", ".gltf", ".glb", ".obj", ".ply", ".stl")
 __all__ = ["load_scene", "SUFFIXES"]
 
 
-def load_scene(path) -> Scene:
-    """Load a scene file into a Scene (world space, triangles in load order)."""
+def load_scene(path, default_environment: bool = True) -> Scene:
+    """Load a scene file into a Scene (world space, triangles in load order).
+
+    A glTF file (.gltf/.glb) that lights nothing itself (no KHR_lights_punctual light instanced in
+    its scene: no point or spot light, no sun, no directional light) would render with the constant
+    ambient term alone, nearly black: it gets the neutral studio environment instead
+    (`scene.set_environment("studio")`, clrender.environment) and
+    `scene.settings["default_environment"] = True`, so the CLI can say so. A glTF that defines
+    lights keeps exactly its lights. `default_environment=False` turns this off (the TOML loader's
+    mesh files: a TOML scene has the [environment] table). OBJ/PLY/STL and TOML files get no default
+    environment (`scene.environment` is None unless a TOML [environment] table sets one)."""
     try:
         path = Path(path)
     except TypeError:
@@ -34,6 +43,17 @@ def load_scene(path) -> Scene:
         return load_toml(path)
     if suffix in (".gltf", ".glb"):
         from .gltf import load_gltf
-        return load_gltf(path)
+        scene = load_gltf(path)
+        if default_environment and not _has_lights(scene):
+            scene.set_environment("studio")
+            scene.settings["default_environment"] = True
+        return scene
     from . import mesh
     return {".obj": mesh.load_obj, ".ply": mesh.load_ply, ".stl": mesh.load_stl}[suffix](path)
+
+
+def _has_lights(scene: Scene) -> bool:
+    """Whether a loaded scene lights itself: punctual lights, a sun or directional lights."""
+    from .lights import DIRECTIONAL_KEY
+    settings = scene.settings if isinstance(scene.settings, dict) else {}
+    return len(scene.lights) > 0 or scene.sun is not None or bool(settings.get(DIRECTIONAL_KEY))

@@ -45,10 +45,12 @@ Also:
   normalized. `point` -> `Scene.add_point_light`, `spot` -> `Scene.add_spot_light` with
   innerConeAngle (default 0) and outerConeAngle (default pi/4) in degrees. Color = `color`
   (default [1, 1, 1]) x `intensity` (default 1). glTF intensities are photometric (candela for
-  point and spot lights, lux for directional ones); they are NOT rescaled: a 10 cd light gets
-  color 10, whatever units the renderer's falloff then assumes. `range` -> radius; without a range (infinite) the radius is
-  sqrt(256 * max(color * intensity)) clamped to [1e-3, 4 x scene diagonal] (see
-  `clrender.loaders.lights`). Node scale does not change a light's range or cone (spec).
+  point and spot lights, lux for directional ones) and keep the extension's meaning: a 10 cd light
+  gets color 10 and `Light.falloff` inverse square (irradiance I/d², with the extension's range
+  window clamp(1 − (d/range)⁴, 0, 1)² when `range` is given; docs/shading.md). `range` -> radius;
+  without a range (infinite) the radius is sqrt(256 * max(color * intensity)) (where I/d² has
+  fallen to 1/256) clamped to [1e-3, 4 x scene diagonal] (see `clrender.loaders.lights`), and no
+  window. Node scale does not change a light's range or cone (spec).
   the first `directional` light becomes the sun (`Scene.sun`, shadowed); all are kept in
   `Scene.settings["directional_lights"]` (direction, color x intensity); the others warn.
 """
@@ -61,6 +63,7 @@ from typing import Optional
 import numpy as np
 
 from .. import animation as gltf_animation
+from .. import structs
 from ..camera import Camera
 from ..scene import Material, Scene, SceneError
 from .common import Piece, assemble, check_faces, world_piece
@@ -206,6 +209,9 @@ def _lights(doc: Document, order: list[int], scene: Scene) -> None:
                     outer = MAX_SPOT_OUTER_DEG
                     inner = min(inner, outer)
                 scene.add_spot_light(position, direction / norm, color, radius, inner, outer)
+            # KHR_lights_punctual units: candela, inverse-square falloff (the range window when given)
+            scene.lights["falloff"][-1] = (structs.FALLOFF_INVERSE_SQUARE if "range" in light
+                                           else structs.FALLOFF_INVERSE_SQUARE_UNBOUNDED)
         except SceneError as exc:
             raise doc.err(f"{what}: {exc}") from None
     if auto:

@@ -4,13 +4,17 @@ Every core material property, KHR_materials_emissive_strength, KHR_materials_unl
 textureInfo its texCoord and KHR_texture_transform (`UVTransform`). Images are decoded in
 parallel (`start_images`), while the loader reads the geometry; a texture is shared by (image, wrap modes, colour space): base colour
 and emissive images are sRGB, the others linear.
+
+An image file that is missing or cannot be decoded (and an embedded image that cannot be decoded)
+is not an error: one warning names the file and the materials that use it, those materials' slots
+get texture index -1 (they render with their factors alone) and the load goes on.
 """
 from __future__ import annotations
 
 import warnings
 from urllib.parse import unquote
 
-from ..scene import Material, SceneError, Texture, UVTransform
+from ..scene import TEXTURE_SLOTS, Material, SceneError, Texture, UVTransform
 from .common import decode_image, start_images
 from .gltf_document import (TEXTURE_INFOS, WRAP_MODES, Document, data_uri, material_textures, texcoord_of,
                             texture_source)
@@ -45,10 +49,10 @@ def load_materials(doc: Document, features: dict):
     textures_json = doc.list("textures")
     samplers = doc.list("samplers")
     slots: dict[tuple, int] = {}
-    jobs, names, keys = [], [], []
+    jobs, names, keys, users = [], [], [], []
     materials = []
 
-    def texture(info: dict, srgb: bool) -> int:
+    def texture(info: dict, srgb: bool, user: str) -> int:
         tex = textures_json[info["index"]]
         src = texture_source(tex)
         if src is None:
@@ -60,9 +64,12 @@ def load_materials(doc: Document, features: dict):
         key = (src, WRAP_MODES[sampler.get("wrapS", 10497)], WRAP_MODES[sampler.get("wrapT", 10497)], srgb)
         if key not in slots:
             slots[key] = len(jobs)
-            jobs.append(_image_job(doc, src, images[src]))
+            jobs.append(_tolerant(_image_job(doc, src, images[src])))
             names.append(_image_name(images[src], src))
             keys.append(key)
+            users.append([])
+        if user not in users[slots[key]]:
+            users[slots[key]].append(user)
         return slots[key]
 
     for m, mat in enumerate(doc.list("materials")):
@@ -80,7 +87,7 @@ def load_materials(doc: Document, features: dict):
             raise doc.err(f"{where}: baseColorFactor needs 4 numbers")
         kw = {}
         for slot, label, info in material_textures(doc, m, mat):
-            kw[f"{slot}_texture"] = texture(info, SRGB_SLOTS[slot])
+            kw[f"{slot}_texture"] = texture(info, SRGB_SLOTS[slot], f"material {m} ({name!r}) {label}")
             kw[f"{slot}_uv"] = uv_transform(doc, f"{where} {label}", info)
         if "normalTexture" in mat:
             kw["normal_scale"] = mat["normalTexture"].get("scale", 1.0)
@@ -102,9 +109,44 @@ def load_materials(doc: Document, features: dict):
     wait = start_images(jobs)
 
     def textures() -> list[Texture]:
-        return [Texture(n, rgba, ws, wt, srgb=srgb) for n, rgba, (_, ws, wt, srgb) in zip(names, wait(), keys)]
+        images_ = wait()
+        kept = [j for j, rgba in enumerate(images_) if not isinstance(rgba, SceneError)]
+        failed: dict = {}               # image index -> (its error, the users of every texture made from it)
+        for j, rgba in enumerate(images_):
+            if isinstance(rgba, SceneError):
+                error, who = failed.setdefault(keys[j][0], (rgba, []))
+                who.extend(u for u in users[j] if u not in who)
+        for error, who in failed.values():
+            warnings.warn(f"{error} (used by {'; '.join(who)}): the texture is left out, the material renders "
+                          f"with its factors", stacklevel=2)
+        if len(kept) < len(images_):
+            _drop_textures(materials, {j: k for k, j in enumerate(kept)}, len(images_))
+        return [Texture(names[j], images_[j], ws, wt, srgb=srgb) for j, (_, ws, wt, srgb) in
+                ((j, keys[j]) for j in kept)]
     textures.cancel = wait.cancel
     return materials, textures
+
+
+def _tolerant(job):
+    """The image job, returning its SceneError (missing or undecodable file) instead of raising it."""
+    def run():
+        try:
+            return job()
+        except SceneError as exc:
+            return exc
+    return run
+
+
+def _drop_textures(materials: list, remap: dict, count: int) -> None:
+    """Renumber the materials' texture indices after failed images were left out (`remap`: old
+    index -> new; a missing one -> -1). The Material objects are changed in place: the loader made
+    them and the Scene being assembled already holds these very objects (common.assemble copies
+    the list before it calls textures()), so replacing them in `materials` would not reach it."""
+    for m in materials:
+        for slot in TEXTURE_SLOTS:
+            t = getattr(m, f"{slot}_texture")
+            if 0 <= t < count:
+                object.__setattr__(m, f"{slot}_texture", remap.get(t, -1))
 
 
 def _image_name(img: dict, index: int) -> str:
@@ -128,6 +170,4 @@ def _image_job(doc: Document, index: int, img: dict):
         data = data_uri(doc, uri, f"image {index}")
         return lambda: decode_image(data, where)
     file = doc.base / unquote(uri)
-    if not file.is_file():
-        raise doc.err(f"texture file not found: {file} (image {index})")
-    return lambda: decode_image(file, where)
+    return lambda: decode_image(file, where)        # a missing file: SceneError "texture file not found"

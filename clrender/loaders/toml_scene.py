@@ -77,7 +77,18 @@ shadow_map_size = 2048        # optional, default 2048 per cascade
 
 [lights]                      # optional
 random = { count = 64, seed = 7, radius = [0.5, 1.5], intensity = 1.0 }
+
+[environment]                 # optional: an HDR environment lighting the scene (Scene.environment)
+source = "studio.exr"         # required: an .exr/.hdr/.pic file relative to this file, or "studio"
+intensity = 1.0               # optional, >= 0, default 1: scales its radiance
+rotation = 0.0                # optional, degrees, default 0: turns it about +Y
+background = true             # optional, default true: pixels that hit no surface show it
 ```
+
+Environment (clrender/environment.py: formats, the direction convention, the studio numbers): with
+an `[environment]` table the scene is lit by the image (`Scene.set_environment`) and the constant
+`ambient` term is not added. Without one a TOML scene has no environment, whatever its mesh files
+are (a glTF file loaded alone gets the studio environment when it has no lights: `load_scene`).
 
 Lights: `Scene.lights` holds, in this order, the lights of the mesh files (glTF
 KHR_lights_punctual, moved by the mesh's transform), then the `[[light]]` tables in file order,
@@ -137,7 +148,8 @@ from .common import (concat_vertex_attributes, fail, shift_textures, transform_n
 from .lights import (AUTO_RADIUS_KEY, DIRECTIONAL_KEY, auto_radius, refresh_auto_radii, scene_diagonal,
                      sun_from_directional, transform_lights, warn_directional)
 
-TOP_LEVEL = {"mesh", "material", "camera", "render", "light", "lights", "ambient", "sun"}
+TOP_LEVEL = {"mesh", "material", "camera", "render", "light", "lights", "ambient", "sun", "environment"}
+ENVIRONMENT_KEYS = {"source", "intensity", "rotation", "background"}
 SUN_KEYS = {"direction", "color", "intensity", "shadow", "shadow_map_size"}
 MESH_KEYS = {"path", "name", "transform", "opacity", "refraction"}
 MATERIAL_KEYS = {"name", "opacity", "refraction", "alpha_mode", "alpha_cutoff"}
@@ -377,6 +389,30 @@ def _sun(path, data) -> Sun:
         raise fail(path, f"[sun]: {exc}") from None
 
 
+def _environment(path, data):
+    """[environment] -> an Environment (clrender.environment), its file relative to the TOML file."""
+    from ..environment import STUDIO, load_environment
+    data = _table(path, "[environment]", data)
+    _unknown(path, "[environment]", data, ENVIRONMENT_KEYS)
+    source = data.get("source")
+    if not isinstance(source, str) or not source.strip():
+        raise fail(path, f"[environment] needs 'source': a file path (.exr, .hdr, .pic) or \"studio\", "
+                         f"got {source!r}")
+    intensity = _number(path, "environment.intensity", data.get("intensity", 1.0))
+    if intensity < 0:
+        raise fail(path, f"environment.intensity must be >= 0, got {intensity!r}")
+    rotation = _number(path, "environment.rotation", data.get("rotation", 0.0))
+    background = data.get("background", True)
+    if not isinstance(background, bool):
+        raise fail(path, f"environment.background must be true or false, got {background!r}")
+    if source.strip().lower() != STUDIO:
+        source = path.parent / source
+    try:
+        return load_environment(source, intensity, rotation, background)
+    except SceneError as exc:
+        raise fail(path, f"[environment]: {exc}") from None
+
+
 def _add_lights(path, scene: Scene, lights: list[dict]) -> None:
     """Append validated [[light]] tables to `scene` (point/spot -> Scene.lights, directional -> settings)."""
     diagonal = scene_diagonal(scene)
@@ -584,6 +620,7 @@ def load_toml(path) -> Scene:
     random = _random_lights(path, data["lights"]) if "lights" in data else None
     camera = _camera(path, data["camera"]) if "camera" in data else None
     sun = _sun(path, data["sun"]) if "sun" in data else None
+    environment = _environment(path, data["environment"]) if "environment" in data else None
     overrides = _material_overrides(path, data["material"]) if "material" in data else []
     used = [False] * len(overrides)
 
@@ -609,7 +646,7 @@ def load_toml(path) -> Scene:
             raise fail(path, f"{where}.name must be a string")
         mesh_values = _material_values(path, where, entry)
         try:
-            sub = load_scene(file)
+            sub = load_scene(file, default_environment=False)
         except SceneError as exc:
             raise SceneError(f"{path}: {where}: {exc}") from None
         _apply_materials(path, f"{where} ({rel})", sub, mesh_values, overrides, used)
@@ -631,6 +668,7 @@ def load_toml(path) -> Scene:
     scene.camera = camera if camera is not None else next((s.camera for _, s in parts if s.camera is not None), None)
     if ambient is not None:
         scene.ambient = ambient
+    scene.environment = environment
     if render is not None:
         scene.settings["render"] = render
     first_light = len(scene.lights)

@@ -5,9 +5,10 @@ from __future__ import annotations
 import numpy as np
 
 from .. import capabilities
+from .ibl_pass import ENV_OUTPUTS, env_kernel_args
 from .base import SCENE_INPUTS, round_up, scene_args, view_defines
 
-FORWARD_INPUTS = ("prims",) + SCENE_INPUTS + ("camera_params", "ambient", "lights", "n_lights", "light_env")
+FORWARD_INPUTS = ("prims",) + SCENE_INPUTS + ("camera_params", "ambient", "lights", "n_lights", "light_env") + ENV_OUTPUTS
 
 
 def forward_vec(config, device) -> int:
@@ -39,4 +40,4 @@ def forward_args(res, prims) -> tuple:
     env = res["light_env"]
     return (*scene_args(res, prims), res["camera_params"].data, np.int32(res["width"]), np.int32(res["height"]),
             np.float32(res["ambient"]), res["lights"].data, np.int32(res["n_lights"]), *env.lists,
-            *env.shadow_and_sun)
+            *env.shadow_and_sun, *env_kernel_args(res))

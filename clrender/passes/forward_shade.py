@@ -9,6 +9,7 @@ import numpy as np
 
 from .. import gbuffer as layout
 from .base import SCENE_INPUTS, scene_args
+from .ibl_pass import env_kernel_args
 from .shade import ShadePass
 
 AOV_PLANES = tuple(p for p in layout.PLANES if p not in layout.DEPTH_PLANES)
@@ -39,6 +40,7 @@ class ForwardShadePass(ShadePass):
                     (prev_positions if prev_positions is not None else res["positions"]).data, np.int32(has_prev),
                     res["camera_params"].data, res["lights"].data, np.int32(res["n_lights"]),
                     np.float32(res["ambient"]), offsets.data, counts.data, lists.data, np.int32(capacity),
-                    np.int32(self.tiles_x), *self._shadow_args(res), self.color.data, res["gbuffer"].data,
+                    np.int32(self.tiles_x), *self._shadow_args(res), *env_kernel_args(res), self.color.data,
+                    res["gbuffer"].data,
                     self.light_count.data, self.shadow.data, self.light_pairs.data)
         self.pair_sum(self.light_pairs, res["width"] * res["height"], self.queue)

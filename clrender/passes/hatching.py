@@ -1,6 +1,12 @@
 """Hatching pass (kernels/hatching.cl): the report's non-photorealistic post effect (IV.3,
-"crayonnage"), tonal art maps after Praun et al. 2001 (clrender/tam.py). In the LDR chain after
-FXAA, before encode (docs/post.md): reads `ldr`, publishes its own `ldr`."""
+"crayonnage"), tonal art maps after Praun et al. 2001 (clrender/tam.py), drawn on white paper with
+ink outlines. In the LDR chain after FXAA, before encode (docs/post.md "Hatching"): reads `ldr`
+and the G-buffer (`gbuffer`, the output resolution's), publishes its own `ldr`.
+
+One kernel launch: pixels without geometry (triangle id -1) are paper white; foreground pixels
+discontinuous with a direct neighbour (edge_aa.cl's test, with RenderConfig.edge_depth_threshold
+and edge_normal_threshold_deg; inked on the nearer side) are black ink; the others get the
+strokes over their desaturated colour."""
 from __future__ import annotations
 
 import math
@@ -10,7 +16,8 @@ import numpy as np
 import pyopencl.array as cla
 
 from .. import capabilities, tam
-from .base import RenderPass, empty, launch_1d
+from .. import gbuffer as layout
+from .base import RenderPass, empty, launch_2d
 
 # One upload of the tonal art map per device (shared by that device's renderers).
 _TAM_ON_DEVICE: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
@@ -39,18 +46,19 @@ def mip_levels(scale: float) -> tuple[int, float, int, float, float]:
 
 class HatchingPass(RenderPass):
     name = "hatching"
-    inputs = ("ldr",)
+    inputs = ("ldr", "gbuffer")
     outputs = ("ldr",)
 
     def __init__(self, device, config):
         super().__init__(device, config)
         self.vec = capabilities.pixel_vector_width(device.cl_device)
-        self.kernel = device.kernel("hatching.cl", "hatching",
-                                    {"VEC": self.vec, "TAM_SIZE": tam.SIZE, "TONES": tam.TONES})
+        self.kernel = device.kernel("hatching.cl", "hatching", {**layout.kernel_defines(), "VEC": self.vec,
+                                                                "TAM_SIZE": tam.SIZE, "TONES": tam.TONES})
         self.tam = tam_buffer(device)
         level0, k0, level1, k1, frac = mip_levels(config.hatching_scale)
         self.args = (np.int32(level0), np.float32(k0), np.int32(level1), np.float32(k1), np.float32(frac),
-                     np.float32(config.hatching_saturation))
+                     np.float32(config.hatching_saturation), np.float32(config.edge_depth_threshold),
+                     np.float32(math.cos(math.radians(config.edge_normal_threshold_deg))))
 
     def allocate(self, width, height):
         self.size = (width, height)
@@ -62,6 +70,6 @@ class HatchingPass(RenderPass):
 
     def run(self, res):
         w, h = self.size
-        npix = w * h
-        self.kernel(self.queue, *launch_1d(-(-npix // self.vec)), self.src.data, np.int32(w),
-                    np.int32(npix), self.tam.data, *self.args, self.out.data)
+        # work-item (i, y): the run of `vec` pixels of row y from x = i·vec; fixed 8×8 groups
+        self.kernel(self.queue, *launch_2d(-(-w // self.vec), h), self.src.data, res["gbuffer"].data,
+                    np.int32(w), np.int32(h), self.tam.data, *self.args, self.out.data)

@@ -8,14 +8,22 @@ from __future__ import annotations
 import numpy as np
 
 from .base import empty
+from .ibl_pass import ENV_OUTPUTS
 from .shade import ShadePass
 
 PRECISIONS = {"float32": (np.float32, 0), "float16": (np.float16, 1)}
 
 
 def light_buffer_planes(config) -> int:
-    """Planes of the light buffer: D.rgb + S.rgb, or D.rgb + S luminance."""
-    return 6 if config.light_buffer_specular == "rgb" else 4
+    """Planes of the light buffer: D.rgb + S.rgb, or D.rgb + S luminance; with the glTF BRDF
+    (shading "auto") its third sum T after them, RGB or luminance (kernels/brdf.h)."""
+    rgb = config.light_buffer_specular == "rgb"
+    return (6 if rgb else 4) + (gltf_sums(config) * (3 if rgb else 1))
+
+
+def gltf_sums(config) -> int:
+    """LB_GLTF: whether the light buffer holds the glTF BRDF's third sum."""
+    return int(config.shading == "auto")
 
 
 class LightBufferPass(ShadePass):
@@ -24,7 +32,7 @@ class LightBufferPass(ShadePass):
 
     def __init__(self, device, config, ortho: bool = False):
         super().__init__(device, config, ortho)
-        self.inputs = tuple(i for i in self.inputs if i not in ("srgb_lut", "ao"))
+        self.inputs = tuple(i for i in self.inputs if i not in ("srgb_lut", "ao") + ENV_OUTPUTS)
         self.dtype = PRECISIONS[config.light_buffer_precision][0]
         self.planes = light_buffer_planes(config)
 
@@ -32,7 +40,7 @@ class LightBufferPass(ShadePass):
         return device.kernel("light_buffer.cl", "light_buffer",
                              {**self._light_defines(config),
                               "SPECULAR_RGB": int(config.light_buffer_specular == "rgb"),
-                              "LB_HALF": PRECISIONS[config.light_buffer_precision][1]})
+                              "LB_HALF": PRECISIONS[config.light_buffer_precision][1], "LB_GLTF": gltf_sums(config)})
 
     def allocate(self, width, height):
         self.tiles_x, self.tiles_y = -(-width // self.tile), -(-height // self.tile)
@@ -51,6 +59,7 @@ class LightBufferPass(ShadePass):
                     res["gbuffer"].data, np.int32(res["width"]), np.int32(res["height"]), np.float32(res["far"]),
                     res["camera_params"].data, res["lights"].data, np.int32(res["n_lights"]),
                     offsets.data, counts.data, lists.data, np.int32(capacity), np.int32(self.tiles_x),
-                    *self._shadow_args(res), self.light_buffer.data, self.light_count.data, self.shadow.data,
+                    *self._shadow_args(res), res["tri_material"].data, res["materials"].data,
+                    np.int32(res["gltf_scene"]), self.light_buffer.data, self.light_count.data, self.shadow.data,
                     self.light_pairs.data)
         self.pair_sum(self.light_pairs, res["width"] * res["height"], self.queue)

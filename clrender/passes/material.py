@@ -11,7 +11,8 @@ import numpy as np
 from .. import capabilities
 from .. import gbuffer as layout
 from .base import SCENE_INPUTS, RenderPass, empty, round_up, scene_args, view_defines
-from .light_buffer import PRECISIONS
+from .ibl_pass import ENV_OUTPUTS, env_kernel_args
+from .light_buffer import PRECISIONS, gltf_sums
 from .second_geometry import sample_offsets
 
 
@@ -29,14 +30,15 @@ class MaterialPass(RenderPass):
         super().__init__(device, config)
         self.samples = samples
         self.vec = capabilities.pixel_vector_width(device.cl_device)
-        self.inputs = ("light_buffer", "gbuffer") + SCENE_INPUTS + ("srgb_encode", "ambient") + (
+        self.inputs = ("light_buffer", "gbuffer") + SCENE_INPUTS + ("srgb_encode", "ambient", "camera_params") + \
+            ENV_OUTPUTS + (
             ("ao",) if config.ssao else ()) + (
             ("vis_prim", "prims") if samples == 1 else
             tuple(n for s in range(samples) for n in (f"vis_prim_{s}", f"prims_{s}")) + ("vis_prim", "prims"))
         self.kernel = device.kernel("material.cl", "material", {
             **layout.kernel_defines(), "VEC": self.vec, "SSAO": int(config.ssao),
             "SPECULAR_RGB": int(config.light_buffer_specular == "rgb"),
-            "LB_HALF": PRECISIONS[config.light_buffer_precision][1],
+            "LB_HALF": PRECISIONS[config.light_buffer_precision][1], "LB_GLTF": gltf_sums(config),
             "GB_WRITE": layout.plane_mask(AOV_PLANES), **view_defines(ortho)})
 
     def allocate(self, width, height):
@@ -57,5 +59,5 @@ class MaterialPass(RenderPass):
             self.kernel(self.queue, gsize, (64,), res[vis].data, np.int32(w), np.int32(h),
                         *scene_args(res, res[prims]), res["srgb_encode"].data, res["light_buffer"].data,
                         np.float32(res["ambient"]), ao.data, np.int32(s), np.int32(self.samples), np.int32(dx), np.int32(dy),
-                        np.int32(write_aov), res["vis_prim"].data, res["prims"].data, self.color.data,
+                        np.int32(write_aov), res["camera_params"].data, *env_kernel_args(res), res["vis_prim"].data, res["prims"].data, self.color.data,
                         self.spread.data, res["gbuffer"].data)

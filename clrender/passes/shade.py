@@ -9,6 +9,7 @@ from dataclasses import dataclass
 
 from .. import capabilities, structs
 from .. import gbuffer as layout
+from .ibl_pass import ENV_OUTPUTS, env_kernel_args
 from .base import RenderPass, empty, view_defines, zeros
 
 
@@ -68,7 +69,7 @@ class ShadePass(RenderPass):
         self.brute_force = config.light_culling == "brute_force"
         self.stencil = config.light_culling == "stencil"      # light_stencil.cl's per-pixel bits
         self.inputs = ("gbuffer", "lights", "n_lights", "ambient", "camera_params", "srgb_lut", "surface_extras",
-                       "tri_material", "materials") + (
+                       "tri_material", "materials", "gltf_scene") + ENV_OUTPUTS + (
             () if self.brute_force else ("tile_light_counts", "tile_light_offsets", "tile_lights")) + (
             ("light_stencil", "light_stencil_words") if self.stencil else ()) + (
             ("ao",) if config.ssao else ()) + ("sun",) + (
@@ -144,7 +145,7 @@ class ShadePass(RenderPass):
                     *(((res["light_stencil"].data, np.int32(res["light_stencil_words"])) if self.stencil
                        else (self.no_list.data, np.int32(0)))),
                     np.int32(res["surface_extras"]), res["tri_material"].data, res["materials"].data,
-                    self.color.data, self.light_count.data, self.shadow.data, self.light_pairs.data)
+                    np.int32(res["gltf_scene"]), *env_kernel_args(res), self.color.data, self.light_count.data, self.shadow.data, self.light_pairs.data)
         self.pair_sum(self.light_pairs, res["width"] * res["height"], self.queue)
 
     def _clear_shadow(self, res):

@@ -32,7 +32,7 @@ kernel void struct_layout(global int* out)
     out[i++] = sizeof(Light);    out[i++] = OFF(Light, position); out[i++] = OFF(Light, radius);
     out[i++] = OFF(Light, color); out[i++] = OFF(Light, type); out[i++] = OFF(Light, direction);
     out[i++] = OFF(Light, cos_outer); out[i++] = OFF(Light, cos_inner); out[i++] = OFF(Light, shadow_size);
-    out[i++] = OFF(Light, shadow); out[i++] = OFF(Light, pad);
+    out[i++] = OFF(Light, shadow); out[i++] = OFF(Light, falloff);
     out[i++] = sizeof(ShadowView); out[i++] = OFF(ShadowView, m); out[i++] = OFF(ShadowView, x0);
     out[i++] = OFF(ShadowView, y0); out[i++] = OFF(ShadowView, size); out[i++] = OFF(ShadowView, ortho);
     out[i++] = OFF(ShadowView, texel); out[i++] = OFF(ShadowView, far); out[i++] = OFF(ShadowView, split);
