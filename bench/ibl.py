@@ -107,7 +107,7 @@ def main(argv=None) -> int:
             print(f"{key:<14}" + "".join(f"{rows[n][key]:14.1f}" for n in CONFIGS))
         env_cost = rows["environment"]["user_frame_ms"] / rows["ambient"]["user_frame_ms"] - 1
         brdf_cost = rows["ambient"]["user_frame_ms"] / rows["blinn_phong"]["user_frame_ms"] - 1
-        shade = {n: rows[n]["passes_ms"].get("shade", 0.0) for n in CONFIGS}
+        shade = {n: rows[n]["passes_ms"].get("shade_ms", 0.0) for n in CONFIGS}
         print(f"environment vs constant ambient: {env_cost:+.1%} user frame, shade {shade['environment']:.1f} vs "
               f"{shade['ambient']:.1f} ms; glTF BRDF vs Blinn-Phong: {brdf_cost:+.1%} user frame, shade "
               f"{shade['ambient']:.1f} vs {shade['blinn_phong']:.1f} ms")

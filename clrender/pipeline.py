@@ -102,7 +102,7 @@ class Pipeline:
         if self.shadow is not None:
             self.passes.append(self.shadow)
         # The environment's maps (Scene.set_environment): precomputed once per environment.
-        from .passes.ibl_pass import IblPass
+        from .passes.ibl import IblPass
         self.passes += [IblPass(device, config), *self._lighting_passes(device, config), *self.transparency[1:]]
         # Over-sampling: everything so far renders k·W × k·H; the resolve filters down to W × H.
         self.post = ([ResolvePass(device, config)] if config.supersample > 1 else []) + self._post_passes(device, config)

@@ -20,7 +20,7 @@
  *                                 (coefficient k, channel c at 3k + c), basis order (world axes):
  *                                 1, y, z, x, xy, yz, 3z^2 - 1, xz, x^2 - y^2 times ENV_SH_K* below
  *   env_dfg    float[3 * n * n]   split-sum table, texel (i, j) at 3 (j n + i): A, B, C at
- *                                 n.v = (i + 0.5) / n, roughness = (j + 0.5) / n, bilinear, clamped
+ *                                 n.v = (i + 0.5) / n, roughness = j / (n - 1), bilinear, clamped
  *   env_params float[ENV_P_COUNT] ENV_P_* below: intensity, rotation, counts
  *
  * Usage:  kernel void shade(..., ENV_PARAMS) { const EnvMaps env = ENV_INIT; env_backgroundV(&env, ...); }
@@ -188,14 +188,15 @@ static inline void env_specularV(const EnvMaps* e, floatV rx, floatV ry, floatV 
     *r *= s; *g *= s; *b *= s;
 }
 
-/* The split-sum terms at (n.v, roughness), bilinear in the table (clamped to the texel centres):
+/* The split-sum terms at (n.v, roughness), bilinear in the table (n.v clamped to the texel centres,
+ * roughness rows at j / (n - 1)):
  * specular = prefiltered * (F0 A + B), diffuse = albedo (1 - F0) C E / pi (glTF 2.0 Appendix B). */
 static inline void env_dfgV(const EnvMaps* e, floatV nv, floatV roughness, floatV* A, floatV* B, floatV* C)
 {
     const int n = (int)e->params[ENV_P_DFG_SIZE];
     const float top = (float)(n - 1);
     const floatV fx = fmin(fmax(fmin(fmax(nv, 0.0f), 1.0f) * (float)n - 0.5f, 0.0f), top);   /* NaN -> 0 */
-    const floatV fy = fmin(fmax(fmin(fmax(roughness, 0.0f), 1.0f) * (float)n - 0.5f, 0.0f), top);
+    const floatV fy = fmin(fmax(roughness, 0.0f), 1.0f) * top;                              /* rows at j/(n-1) */
     const intV x0 = convert_intV(fx), y0 = convert_intV(fy);
     const intV x1 = min(x0 + 1, (intV)(n - 1)), y1 = min(y0 + 1, (intV)(n - 1));
     const floatV ax = fx - convert_floatV(x0), ay = fy - convert_floatV(y0);

@@ -6,61 +6,76 @@
  *     d = (sin theta sin phi, cos theta, -sin theta cos phi).
  *
  * Algorithm, kernel by kernel:
- *   ibl_box       area-weighted box resize of one equirect level into another (any sizes): output texel
+ *   ibl_box       box resize of one equirect level into another (any sizes) on the sphere: output texel
  *                 (i, j) covers the source rectangle [i sx, (i+1) sx) x [j sy, (j+1) sy), sx = sw / dw,
- *                 sy = sh / dh, and averages the source texels by their overlap with it (plain image
- *                 area, not solid angle). Makes the specular chain's level 0 (the environment at most
- *                 512 wide) and the source mip chain of the prefilter (halvings: exact 2x2 means).
+ *                 sy = sh / dh, and is the solid-angle-weighted mean of the source texels over it (the
+ *                 weight of a source texel: its overlap in x times cos theta_a - cos theta_b of its overlap
+ *                 in y). So a coarse texel holds the mean radiance of its part of the sphere and a small
+ *                 bright source keeps its energy at every level (a plain image-area mean under-counts
+ *                 sources near the equator: FIS then loses up to 30% of a sun at high roughness).
+ *                 Makes the specular chain's level 0 (the environment at most max_width wide) and the
+ *                 prefilter's source mip chain (halvings).
+ *   ibl_copy      copies floats (the chain's level 0 into the mip chain's buffer; a kernel rather than
+ *                 clEnqueueCopyBuffer, whose output Oclgrind 21.10's checker then reports as uninitialized).
  *   ibl_sh_rows   order-2 SH projection of the full-resolution environment, one work-item per row: the
- *                 row's sums over its texels of L(d) * (1, y, z, x, xy, yz, 3z^2 - 1, xz, x^2 - y^2)
- *                 (27 floats: coefficient-major, RGB), times the row's texel solid angle
+ *                 row's sums over its texels of L(d) * (1, y, z, x, xy, yz, 3z^2 - 1, xz, x^2 - y^2) at the
+ *                 texel centres (27 floats: coefficient-major, RGB), times the row's texel solid angle
  *                 dOmega = (2 pi / w) (cos theta_j - cos theta_{j+1}) = (2 pi / w) 2 sin(theta) sin(pi / 2h).
  *   ibl_sh_reduce sums the row partials in row order (one work-item per coefficient and channel) and
  *                 scales them by the basis constant and A_l / pi (A_0 = pi, A_1 = 2 pi / 3, A_2 = pi / 4,
  *                 Ramamoorthi & Hanrahan 2001): evaluating the result at n gives E(n) / pi.
- *   ibl_prefilter one level of the specular chain: each texel, direction N = V = R, is Karis's (2013)
- *                 GGX-filtered radiance sum_i L(l_i) (n.l_i) / sum_i (n.l_i), alpha = roughness^2, the
- *                 half vectors importance-sampled from the Hammersley points (i / S, radical inverse of i),
- *                 l = 2 (n.h) h - n. Filtered importance sampling (Krivanek & Colbert 2007): sample i reads
- *                 the source mip chain trilinearly at lod = 0.5 log2(Omega_s / Omega_p) + 1, Omega_s =
- *                 1 / (S pdf) (pdf = D(n.h) / 4 for n = v), Omega_p = the solid angle of a level-0 source
- *                 texel at the sample's latitude, (2 pi / w0) (pi / h0) sin(theta)^POLE_WEIGHT (docs/ibl.md:
- *                 POLE_WEIGHT = 0.5 splits the difference between the texel's height and its area).
- *                 The tangent frame of texel (theta, phi) is dN/dtheta, dN/dphi / sin(theta): no
- *                 singularity. Samples with n.l <= 0 are the same for every texel (n.l = 2 (n.h)^2 - 1)
- *                 and skipped.
- *   ibl_dfg       the environment-independent split-sum table: texel (i, j), n.v = (i + 0.5) / n, roughness
- *                 r = (j + 0.5) / n, alpha = r^2, v = (sqrt(1 - n.v^2), 0, n.v):
- *                   A = 1/S sum_i 4 Vis (n.l) (v.h) / (n.h) (1 - Fc),  B = the same with Fc, Fc = (1 - v.h)^5,
- *                 h from the same GGX Hammersley sampling, terms with n.l <= 0 zero, Vis the Smith
- *                 height-correlated visibility of glTF 2.0 Appendix B; and
- *                   C = 1/S sum_i (1 - (1 - v.h)^5),  l cosine-distributed from the Hammersley points
- *                 (cos theta = sqrt(1 - xi2)): the hemispherical average (1/pi) int (1 - (1 - v.h)^5) (n.l) dl
- *                 of glTF's diffuse weight, the same in every row.
+ *   ibl_sample_table, ibl_prefilter: one level of the specular chain. Each texel, direction N = V = R,
+ *                 is Karis's (2013) GGX-filtered radiance sum_i L(l_i) (n.l_i) / sum_i (n.l_i),
+ *                 alpha = roughness^2, the half vectors importance-sampled from the S Hammersley points
+ *                 (i / S -> phi_h, radical inverse of i -> theta_h), l = 2 (n.h) h - n; samples with n.l <= 0
+ *                 skip (n.l = 2 (n.h)^2 - 1 is the same for every texel). Filtered importance sampling
+ *                 (Krivanek & Colbert 2007): sample i reads the source mip chain trilinearly at
+ *                 lod = 0.5 log2(Omega_s / Omega_p) + LOD_BIAS, Omega_s = 1 / (S pdf), pdf = D(n.h) / 4 (n = v),
+ *                 Omega_p = (2 pi / w0) (pi / h0) the solid angle of an equator texel of the chain's level 0
+ *                 (weighting it by the sample's sin theta, the texel's true solid angle, blurred the
+ *                 polar regions and lost energy in the tests: docs/ibl.md). A row's texels are turns of one
+ *                 another about +Y, and so are their samples: sample i of every texel of row y has the same
+ *                 v and the same offset from the texel's own u. ibl_sample_table computes (v, du, lod, n.l)
+ *                 per (row, sample) once (the trigonometry), ibl_prefilter sums the lookups of VEC texels
+ *                 of a row at a time. The frame at phi = 0: N = (0, cos theta, -sin theta),
+ *                 T = dN/dtheta = (0, -sin theta, -cos theta), B = dN/dphi / sin theta = (1, 0, 0).
+ *   ibl_dfg       the environment-independent split-sum table (glTF 2.0 Appendix B BRDF): texel (i, j),
+ *                 n.v = (i + 0.5) / n (n.v = 0 is degenerate), roughness r = j / (n - 1) (rows at 0 and 1
+ *                 exactly), alpha = r^2, v = (sqrt(1 - n.v^2), 0, n.v):
+ *                   A = int 4 Vis (n.l) (v.h) / (n.h) (1 - Fc) dP(h),  B = the same with Fc, Fc = (1 - v.h)^5,
+ *                 over the GGX distribution of h (dP = D (n.h) dw_h), Vis the Smith height-correlated
+ *                 visibility 0.5 / (n.l sqrt(n.v^2 (1 - a^2) + a^2) + n.v sqrt(n.l^2 (1 - a^2) + a^2)), and
+ *                   C = (1/pi) int (1 - (1 - v.h)^5) (n.l) dw_l over the hemisphere (h = normalize(v + l)).
+ *                 Deterministic product Gauss-Legendre quadrature, built to resolve what defeats sample
+ *                 sequences at grazing n.v (Hammersley with 32768 points still missed A by 1.5e-3):
+ *                 phi_h over [0, pi] (the integrands are even in phi) as two halves split at pi/2, kp nodes
+ *                 each; for each phi, theta_h over exactly the part where n.l > 0,
+ *                 theta_h < (atan2(vx cos phi, n.v) + pi/2) / 2, in the variable s = sqrt(1 - xi)
+ *                 (xi the GGX CDF: tan theta_h = alpha sqrt(1 - s^2) / s, dP = 2 s ds dphi / (2 pi)), which
+ *                 removes the 1 / (n.h) endpoint singularity, ks nodes. C: the same phi nodes, the cosine
+ *                 distribution's t = sin^2 theta_l over [0, 1] with ks nodes. C does not depend on the row.
  *
  * Buffers: every image is float RGB interleaved (texel t at [3t, 3t + 3)), levels addressed by
- *   their offset in texels. ibl_box: src, dst. ibl_sh_rows: texels (the environment at offset 0),
- *   partial float[27 h]. ibl_sh_reduce: partial, sh float[27]. ibl_prefilter: mips (the source chain),
- *   mip_levels int[4 * n_mips] (offset, width, height, 0), dst (the specular level at dst_offset).
- *   ibl_dfg: dfg float[3 n n], texel (i, j) at 3 (j n + i).
- * Work-groups: all any shape, no barriers, no local memory; results do not depend on the shape.
- *   ibl_box 2-D over (dw, dh), a texel per work-item. ibl_sh_rows 1-D over h, a row per work-item, its
- *   texels taken VEC at a time (lanes summed in lane order at the end: the same bits every run).
- *   ibl_sh_reduce 1-D over 27. ibl_prefilter 2-D over (ceil(dw / VEC), dh): a run of VEC adjacent
- *   texels of a row per work-item (the sample sequence is uniform across lanes). ibl_dfg 2-D over
- *   (ceil(n / VEC), n): a run of VEC n.v values of a roughness row. All bounds-checked.
+ *   their offset in texels. ibl_box: src, dst. ibl_copy: src, dst (offsets in floats). ibl_sh_rows: the
+ *   environment, partial float[27 h]. ibl_sh_reduce: partial, sh float[27]. ibl_sample_table: table float4[dh * S].
+ *   ibl_prefilter: mips (the source chain), mip_levels int[4 * n_mips] (offset, width, height, 0), the
+ *   table, dst (the specular level at dst_offset). ibl_dfg: dfg float[3 n n], texel (i, j) at 3 (j n + i);
+ *   gl_s float2[ks], gl_phi float2[kp]: Gauss-Legendre (node, weight) pairs on [0, 1] from the host.
+ * Work-groups: all any shape, no barriers, no local memory; results do not depend on the shape, and
+ *   every sum runs in a fixed order: the same bits every run.
+ *   ibl_box 2-D over (dw, dh), a texel per work-item. ibl_copy 1-D over n. ibl_sh_rows 1-D over h, a row per work-item, its
+ *   texels taken VEC at a time (lanes summed in lane order at the end). ibl_sh_reduce 1-D over 27.
+ *   ibl_sample_table 1-D over dh * S. ibl_prefilter 2-D over (ceil(dw / VEC), dh): a run of VEC adjacent
+ *   texels of a row per work-item. ibl_dfg 2-D over (ceil(n / VEC), n): a run of VEC n.v values of a
+ *   roughness row. All bounds-checked.
  */
 #pragma OPENCL FP_CONTRACT OFF
 
 #include "vec.h"
 #include "environment.h"
 
-#ifndef POLE_WEIGHT
-#define POLE_WEIGHT 0.5f
-#endif
-
 #ifndef LOD_BIAS
-#define LOD_BIAS 1.0f
+#define LOD_BIAS 0.5f      /* Krivanek & Colbert's +1 blurs more than needed at these sample counts */
 #endif
 
 #define IBL_PI 3.14159265358979f
@@ -114,6 +129,12 @@ kernel void ibl_box(global const float* src, int src_offset, int sw, int sh,
     dst[o] = r * inv; dst[o + 1] = g * inv; dst[o + 2] = b * inv;
 }
 
+kernel void ibl_copy(global const float* src, int src_offset, global float* dst, int dst_offset, int n)
+{
+    const int i = get_global_id(0);
+    if (i < n) dst[dst_offset + i] = src[src_offset + i];
+}
+
 kernel void ibl_sh_rows(global const float* texels, int w, int h, global float* partial)
 {
     const int j = get_global_id(0);
@@ -129,8 +150,7 @@ kernel void ibl_sh_rows(global const float* texels, int w, int h, global float* 
         const intV xc = min(x, (intV)(w - 1));
         const floatV keep = select((floatV)0.0f, (floatV)1.0f, inside);
         const floatV phi = 2.0f * IBL_PI * ((convert_floatV(xc) + 0.5f) / (float)w - 0.5f);
-        floatV cp;
-        const floatV sp = sincos(phi, &cp);
+        const floatV sp = sin(phi), cp = cos(phi);      /* not sincos: Oclgrind's checker stops at it */
         const floatV dx = st * sp, dy = (floatV)ct, dz = -st * cp;
         const intV t = 3 * (row + xc);
         const floatV L[3] = { GATHER_F(texels, t) * keep, GATHER_F(texels, t + 1) * keep,
@@ -207,8 +227,8 @@ kernel void ibl_sample_table(global float4* table, int dh, int samples, float al
     float ch, sh;
     ggx_half(a2, radical_inverse((uint)i), &ch, &sh);
     const float nl = 2.0f * ch * ch - 1.0f;             /* n = v: the same for every texel */
-    float cph;
-    const float sph = sincos(2.0f * IBL_PI * (float)i / (float)samples, &cph);
+    const float ph = 2.0f * IBL_PI * (float)i / (float)samples;
+    const float sph = sin(ph), cph = cos(ph);
     const float hx = sh * cph, hy = sh * sph;
     /* h = T hx + B hy + N ch; l = 2 (n.h) h - n */
     const float Hx = hy, Hy = ct * ch - st * hx, Hz = -ct * hx - st * ch;
@@ -219,12 +239,11 @@ kernel void ibl_sample_table(global float4* table, int dh, int samples, float al
     const float v = acos(cl) * ENV_INV_PI;
     const float du = atan2(lx, -lz) * ENV_INV_2PI;
     /* lod = 0.5 log2(Omega_s / Omega_p) + LOD_BIAS, Omega_s = 1 / (S pdf), pdf = D / 4,
-     * Omega_p = (2 pi / w0) (pi / h0) sin(theta_l)^POLE_WEIGHT */
+     * Omega_p = (2 pi / w0) (pi / h0): a level-0 texel's solid angle at the equator */
     const float dd = ch * ch * (a2 - 1.0f) + 1.0f;
     const float D = a2 / (IBL_PI * dd * dd);
     const float omega_s = 4.0f / ((float)samples * D);
-    const float omega_p = 2.0f * IBL_PI * IBL_PI / ((float)w0 * (float)h0)
-                          * pow(sqrt(fmax(1.0f - cl * cl, 1e-12f)), POLE_WEIGHT);
+    const float omega_p = 2.0f * IBL_PI * IBL_PI / ((float)w0 * (float)h0);
     const float lod = fmin(fmax(0.5f * log2(omega_s / omega_p) + LOD_BIAS, 0.0f), (float)(n_mips - 1));
     table[k] = (float4)(v, du, lod, nl > 0.0f ? nl : 0.0f);
 }
@@ -271,7 +290,7 @@ kernel void ibl_prefilter(global const float* mips, global const int* mip_levels
     }
 }
 
-kernel void ibl_dfg(global float* dfg, int n, int samples)
+kernel void ibl_dfg(global float* dfg, int n, global const float2* gl_s, int ks, global const float2* gl_phi, int kp)
 {
     const int gx = get_global_id(0), j = get_global_id(1);
     const int x0 = gx * VEC;
@@ -279,35 +298,49 @@ kernel void ibl_dfg(global float* dfg, int n, int samples)
     const intV i = min((intV)x0 + LANES, (intV)(n - 1));
     const floatV nv = (convert_floatV(i) + 0.5f) / (float)n;
     const floatV vx = sqrt(1.0f - nv * nv);
-    const float r = ((float)j + 0.5f) / (float)n;
-    const float a2 = r * r * r * r;
+    const float r = (float)j / (float)max(n - 1, 1);      /* rows span [0, 1]: roughness 0 and 1 are rows */
+    const float a2 = r * r * r * r, alpha = r * r;
     const floatV gv = sqrt(nv * nv * (1.0f - a2) + a2);    /* Smith's view term */
     floatV A = (floatV)0.0f, B = (floatV)0.0f, C = (floatV)0.0f;
-    for (int s = 0; s < samples; ++s) {
-        const float xi1 = (float)s / (float)samples, xi2 = radical_inverse((uint)s);
-        float cph;
-        const float sph = sincos(2.0f * IBL_PI * xi1, &cph);
-        /* specular: GGX half vector h = (sin cos phi, sin sin phi, cos) */
-        float ch, sh;
-        ggx_half(a2, xi2, &ch, &sh);
-        const floatV vh = vx * (sh * cph) + nv * ch;
-        const floatV nl = 2.0f * vh * ch - nv;
-        const floatV gl = sqrt(nl * nl * (1.0f - a2) + a2);
-        const floatV vis = 0.5f / (nl * gv + nv * gl);
-        const floatV g = select((floatV)0.0f, 4.0f * vis * nl * vh / ch, nl > 0.0f);
-        const floatV m = 1.0f - fmax(vh, 0.0f);   /* vh >= 0 where nl > 0 */
-        const floatV fc = (m * m) * (m * m) * m;
-        A += g * (1.0f - fc);
-        B += g * fc;
-        /* diffuse: l cosine-distributed, v.h = sqrt((1 + v.l) / 2) */
-        const float sl = sqrt(xi2), cl = sqrt(1.0f - xi2);
-        const floatV vl = vx * (sl * cph) + nv * cl;
-        const floatV dh = sqrt(fmax(0.5f * (1.0f + vl), 0.0f));
-        const floatV md = 1.0f - dh;
-        C += 1.0f - (md * md) * (md * md) * md;
+    for (int side = 0; side < 2; ++side) {
+        for (int p = 0; p < kp; ++p) {
+            const float2 np_ = gl_phi[p];
+            const float phi = 0.5f * IBL_PI * ((float)side + np_.x);
+            const float wphi = 0.5f * np_.y;                   /* (1/pi) dphi over [0, pi], halves of pi/2 */
+            const float cp = cos(phi);
+            /* n.l > 0 exactly for theta_h < tmax = (delta + pi/2) / 2, delta = atan2(vx cos phi, n.v) */
+            const floatV tmax = 0.5f * (atan2(vx * cp, nv) + 0.5f * IBL_PI);
+            const floatV st = sin(tmax), ct = cos(tmax);
+            const floatV smin = ct * alpha / sqrt(st * st + ct * ct * a2);
+            const floatV span = 1.0f - smin;
+            for (int k = 0; k < ks; ++k) {
+                const float2 q = gl_s[k];
+                /* xi = 1 - s^2 (GGX: tan theta_h = alpha sqrt(1 - s^2) / s) */
+                const floatV s = smin + q.x * span;
+                const floatV s2 = s * s;
+                const floatV den = a2 + s2 * (1.0f - a2);
+                const floatV ch = sqrt(s2 / den), sh = sqrt(a2 * (1.0f - s2) / den);
+                const floatV w = (q.y * wphi) * span * 2.0f * s;
+                const floatV vh = vx * sh * cp + nv * ch;
+                const floatV nl = fmax(2.0f * vh * ch - nv, 0.0f);
+                const floatV gl = sqrt(nl * nl * (1.0f - a2) + a2);
+                const floatV g = w * (4.0f * 0.5f / (nl * gv + nv * gl)) * nl * vh / ch;
+                const floatV m = 1.0f - clamp(vh, 0.0f, 1.0f);
+                const floatV fc = (m * m) * (m * m) * m;
+                A += g * (1.0f - fc);
+                B += g * fc;
+            }
+            /* C: l cosine-distributed, t = sin^2 theta_l, v.h = sqrt((1 + v.l) / 2) */
+            for (int k = 0; k < ks; ++k) {
+                const float2 q = gl_s[k];
+                const float sl = sqrt(q.x), cl = sqrt(1.0f - q.x);
+                const floatV vl = vx * (sl * cp) + nv * cl;
+                const floatV dh = sqrt(fmax(0.5f * (1.0f + vl), 0.0f));
+                const floatV md = 1.0f - dh;
+                C += (q.y * wphi) * (1.0f - (md * md) * (md * md) * md);
+            }
+        }
     }
-    const float inv = 1.0f / (float)samples;
-    A *= inv; B *= inv; C *= inv;
     for (int lane = 0; lane < VEC; ++lane) {
         if (x0 + lane >= n) break;
         const int o = 3 * (j * n + x0 + lane);

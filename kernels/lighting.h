@@ -1,13 +1,17 @@
-/* lighting.h: the light loop of the report's Blinn-Phong model, shared by the deferred pass
- * (shade.cl, from the G-buffer) and the forward passes over transparent fragments (abuffer.cl,
- * peel.cl: the report's Light-Indexed idea, light lists consumed by a forward pass).
+/* lighting.h: the light loop, shared by the deferred pass (shade.cl, from the G-buffer), the
+ * light pre-pass's light buffer (light_buffer.cl), the light-indexed forward pass
+ * (forward_shade.cl) and the forward passes over transparent fragments (abuffer.cl, peel.cl: the
+ * report's Light-Indexed idea, light lists consumed by a forward pass).
  *
  * accumulate_lights(): for surface points P (world), unit normals N, unit view vectors V and
- * specular terms (s, p), walks `count` lights from `first` of the tile's list (or, with
- * BRUTE_FORCE, every light) in index order, then the sun, adding to the light buffer's sums:
- *     A = (1 - (d/r)^2)^3 for d < r, else 0;  S = 1, or t^2 for spots with
- *     t = clamp((dot(-L, dir) - cos_outer) / max(cos_inner - cos_outer, 1e-4), 0, 1);
- *     diffuse += A·S·vis·color·max(N·L, 0);  specular += A·S·vis·color·s·max(N·H, 0)^p where N·L > 0.
+ * the lanes' BRDF inputs m (brdf.h), walks `count` lights from `first` of the tile's list (or,
+ * with BRUTE_FORCE, every light) in index order, then the sun, adding to three RGB sums D, S, T:
+ *     A = (1 - (d/r)^2)^3 for d < r, else 0 (the report's falloff, Light.falloff 0), or
+ *     KHR_lights_punctual's clamp(1 - (d/r)^4, 0, 1)^2 / d^2 (falloff 1) or 1/d^2 (falloff 2);
+ *     S = 1, or t^2 for spots with t = clamp((dot(-L, dir) - cos_outer) / max(cos_inner - cos_outer, 1e-4), 0, 1);
+ *     Blinn-Phong lanes: D += A·S·vis·color·max(N·L, 0);  S += A·S·vis·color·s·max(N·H, 0)^p where N·L > 0;
+ *     glTF lanes: brdf.h's D, S, T (k = A·S·vis·color·max(N·L, 0) times the BRDF's factors).
+ * The sun has no falloff: A = 1, color = the irradiance.
  * vis (SHADOWS 1): a shadowed spot's map visibility where A·S > 0; the sun's cascade picked
  * from the view depth. When `shadow_out` is not null each visibility is also written to its
  * plane (the opaque pass's Frame.shadow); fragments pass null.
@@ -310,7 +314,8 @@ static inline uint or_lanes(uintV w)
  * coordinates (Poisson rotation); shadow_out (may be null), p0, valid, npix: where visibilities
  * go. stencil, stencil_words (STENCIL): the run's words are stencil[w·npix + p0 + lane] for
  * w < stencil_words (a list longer than 32·stencil_words overflowed: the frame is redone).
- * evaluated, useful (may be null): per lane, += pairs evaluated / useful. */
+ * evaluated, useful (may be null): per lane, += pairs evaluated / useful. tr, tg, tb: the glTF
+ * lanes' third sum (brdf.h); untouched when no lane is glTF. */
 static void accumulate_lights_counted(const LightEnv* env, int first, int count, intV fg,
                                       global const uint* stencil, int stencil_words, intV* evaluated, intV* useful,
                                       floatV px, floatV py_, floatV pz, floatV nx, floatV ny, floatV nz,

@@ -1,21 +1,22 @@
-/* shade.cl: deferred Blinn-Phong shading from the G-buffer (report II.4, the light buffer).
+/* shade.cl: deferred shading from the G-buffer (report II.4, the light buffer), with the
+ * report's Blinn-Phong or the glTF 2.0 BRDF per material (brdf.h, docs/shading.md).
  *
  * Algorithm: one work-group per LTILE×LTILE light tile; each work-item shades a run of VEC
- * adjacent pixels (vec.h). It decodes the G-buffer (normal, albedo, specular terms, linear
- * depth), rebuilds the world position from the linear depth and the pixel's view ray
- * ("Question du Z"), then walks its tile's light list (or, with BRUTE_FORCE, every light) in
- * index order, accumulating the light buffer's diffuse and specular sums:
- *     A = (1 - (d/r)^2)^3 for d < r, else 0;  S = 1, or t^2 for spots with
- *     t = clamp((dot(-L, dir) - cos_outer) / max(cos_inner - cos_outer, 1e-4), 0, 1);
- *     diffuse += A·S·color·max(N·L, 0);  specular += A·S·color·s·max(N·H, 0)^p where N·L > 0;
- * and applies the "global multiply": color = albedo·(ambient + diffuse) + specular. With SSAO
- * the ambient pass is the report's occlusion pass (III.1): ambient becomes ambient·ao, ao read
- * from the ssao pass's buffer; without it (SSAO 0) ao is not read and the arithmetic is unchanged.
- * With surface_extras (a scene with emissive, occlusion-mapped or unlit materials), the
- * emissive_occlusion plane and the material through the triangle id add the emission, scale the
- * ambient term by the material's occlusion and give unlit pixels their albedo alone
- * (gbuffer_decode.h, docs/materials.md). Background pixels get 0. The loop over lights is uniform across the run's lanes, so light
- * records are scalar loads and the math is VEC-wide.
+ * adjacent pixels (vec.h). It decodes the G-buffer (normal, the material bytes, linear depth;
+ * a pixel's model from its triangle's material when gltf_scene), rebuilds the world position
+ * from the linear depth and the pixel's view ray ("Question du Z"), then walks its tile's light
+ * list (or, with BRUTE_FORCE, every light) in index order through lighting.h, accumulating the
+ * light sums D, S (and T on glTF lanes), and composes (compose.h): Blinn-Phong
+ * color = albedo·(ambient + D) + S (the report's "global multiply"), glTF
+ * color = albedo·(1 − F0)·(ambient_d + D) + F0·(ambient_s + S) + ambient_t + T.
+ * The ambient term (the report's ambient pass, III.1) is the constant `ambient`, or with an
+ * environment (has_env: ENV_PARAMS, ambient.h) its irradiance and split-sum specular; SSAO (SSAO 1)
+ * multiplies it (ao read from the ssao pass's buffer). With surface_extras (a scene with
+ * emissive, occlusion-mapped or unlit materials), the emissive_occlusion plane and the material
+ * through the triangle id add the emission, scale the ambient term by the material's occlusion
+ * and give unlit pixels their albedo alone (docs/materials.md). Background pixels get 0, or the
+ * environment along their view ray (env_background). The loop over lights is uniform across the
+ * run's lanes, so light records are scalar loads and the math is VEC-wide.
  * Shadows (SHADOWS 1, report II.4): a spot light with `shadow` >= 0 multiplies its A·S by its
  * shadow map's visibility (shadow.h) where A·S > 0; the sun (has_sun: a directional light, no
  * attenuation, every foreground pixel) by its cascade's visibility, the cascade picked per
@@ -37,7 +38,8 @@
  *          shadow_out float[shadow_planes][H·W] (visibility; spots from plane spot_plane0),
  *          light_pairs int[2][H·W] (evaluated, useful). stencil uint[stencil_words][H·W]
  *          (read if STENCIL: bit k of word k/32 of a pixel = list entry k reaches it).
- *          tri_material int[T], materials Material[M] (read if surface_extras).
+ *          tri_material int[T], materials Material[M] (read if surface_extras or gltf_scene);
+ *          ENV_PARAMS (environment.h; read if has_env).
  * Work-groups: (LTILE/VEC, LTILE); global size = (tiles_x·LTILE/VEC, tiles_y·LTILE).
  */
 #pragma OPENCL FP_CONTRACT OFF

@@ -126,14 +126,20 @@ def test_white_furnace(renderer, metallic, roughness):
     split-sum gets within 2% (the DFG table's A, B and C; the SH of a constant is exact)."""
     pixels = np.ones((16, 32, 3), np.float32)
     err, ref, got = _ibl_errors(renderer, pixels, (1.0, 1.0, 1.0), metallic, roughness)
-    assert err.max() < 0.02, f"furnace: max relative error {err.max():.4f}"
-    if metallic == 1.0 and roughness == 1.0:     # single scattering loses energy (docs/shading.md)
-        assert 0.3 < ref.mean() < 0.9
+    assert err.max() < 0.02, f"furnace: max relative error {err.max():.4f}"     # measured <= 0.5 %
+    if metallic == 1.0 and roughness == 1.0:     # single scattering loses energy (docs/shading.md): 0.40
+        assert 0.35 < ref.mean() < 0.45 and 0.35 < got.mean() < 0.45
 
 
-# Measured (PoCL 3.1, this test's environment and pixels): the worst relative error per case is
-# below these bounds, the split-sum being worst on rough metals (docs/shading.md).
-SPLIT_SUM_BOUND = {0.0: 0.06, 1.0: 0.12}
+# The split-sum approximation's error against the quadrature, relative per pixel and channel,
+# measured on this environment and these pixels (N·V >= 0.2; PoCL 3.1) as (max, median):
+#   dielectric (metallic 0), roughness 0.3 / 0.5 / 0.75 / 1: 1.8 / 1.6 / 1.2 / 0.8 %, medians 0.4-0.5 %
+#   metal (metallic 1):                                 12 / 12 / 24 / 32 %, medians 1.3 / 2.3 / 5.1 / 8.4 %
+# worst on rough metals, where the prefiltered lobe (centred on R, N = V = R assumed) misses the
+# real lobe's shift towards the normal; the bounds below are those numbers with a margin.
+SPLIT_SUM_BOUND = {(0.0, 0.3): (0.025, 0.007), (0.0, 0.5): (0.025, 0.007), (0.0, 0.75): (0.02, 0.007),
+                   (0.0, 1.0): (0.015, 0.007), (1.0, 0.3): (0.16, 0.02), (1.0, 0.5): (0.16, 0.035),
+                   (1.0, 0.75): (0.31, 0.07), (1.0, 1.0): (0.41, 0.11)}
 
 
 @pytest.mark.parametrize("metallic, roughness", CASES)
@@ -141,8 +147,9 @@ def test_split_sum_against_quadrature(renderer, metallic, roughness):
     pixels = smooth_environment(32)
     err, ref, got = _ibl_errors(renderer, pixels, (0.9, 0.6, 0.3), metallic, roughness, rotation=30.0)
     assert ref.min() > 0.05
-    assert np.median(err) < SPLIT_SUM_BOUND[metallic] / 2, f"median relative error {np.median(err):.4f}"
-    assert err.max() < SPLIT_SUM_BOUND[metallic], f"max relative error {err.max():.4f}"
+    worst, median = SPLIT_SUM_BOUND[(metallic, roughness)]
+    assert np.median(err) < median, f"median relative error {np.median(err):.4f}"
+    assert err.max() < worst, f"max relative error {err.max():.4f}"
 
 
 def test_blinn_phong_ambient_is_albedo_times_irradiance(device):

@@ -528,7 +528,8 @@ def _gltf_spheres_with_environment():
     """Two glTF spheres (a rough dielectric, a smooth metal), a transparent glTF sphere in front, a
     Blinn-Phong floor, a point light with KHR inverse-square falloff, and a small HDR environment."""
     from reference.geometry import uv_sphere
-    parts = [uv_sphere(6, 12, radius=0.6, center=c) for c in ((-0.7, 0, -3), (0.7, 0, -3), (0, -0.2, -1.8))]
+    parts = [uv_sphere(6, 12, radius=0.6, center=c) for c in ((-0.7, 0, -3), (0.7, 0, -3))]
+    parts.append(uv_sphere(3, 6, radius=0.35, center=(0, -0.2, -1.8)))     # within the first lists' room
     floor = np.array([[-3, -0.7, -1], [3, -0.7, -1], [3, -0.7, -6], [-3, -0.7, -6]], np.float32)
     pos = np.concatenate([p for p, _, _ in parts] + [floor])
     nrm = np.concatenate([n for _, _, n in parts] + [np.tile([[0, 1, 0]], (4, 1))]).astype(np.float32)

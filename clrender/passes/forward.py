@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from .. import capabilities
-from .ibl_pass import ENV_OUTPUTS, env_kernel_args
+from .ibl import ENV_OUTPUTS, env_kernel_args
 from .base import SCENE_INPUTS, round_up, scene_args, view_defines
 
 FORWARD_INPUTS = ("prims",) + SCENE_INPUTS + ("camera_params", "ambient", "lights", "n_lights", "light_env") + ENV_OUTPUTS

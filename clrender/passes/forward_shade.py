@@ -9,7 +9,7 @@ import numpy as np
 
 from .. import gbuffer as layout
 from .base import SCENE_INPUTS, scene_args
-from .ibl_pass import env_kernel_args
+from .ibl import env_kernel_args
 from .shade import ShadePass
 
 AOV_PLANES = tuple(p for p in layout.PLANES if p not in layout.DEPTH_PLANES)

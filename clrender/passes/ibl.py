@@ -30,7 +30,7 @@ import pyopencl as cl
 
 from .. import capabilities, progress
 from ..device import ProgramSpec
-from .base import launch_1d, launch_2d
+from .base import RenderPass, launch_1d, launch_2d, zeros
 
 SOURCE = "ibl.cl"
 DEFAULT_SPECULAR_LEVELS = 6
@@ -39,9 +39,9 @@ MIN_LEVEL_WIDTH = 8
 # GGX samples per texel of specular level k (k = 1..K-1; the last entry for any further level).
 # Chosen so the prefilter of a 1024 x 2048 environment takes well under 1 s on a 2-core PoCL CPU
 # (docs/ibl.md has the measurements).
-PREFILTER_SAMPLES = (64, 96, 128, 160, 192)
+PREFILTER_SAMPLES = (512, 1024, 2048, 4096, 4096)
 DFG_SIZE = 64
-DFG_SAMPLES = 2048
+DFG_SAMPLES = (64, 16)      # Gauss-Legendre nodes: 64 along theta_h, 16 per half of phi in [0, pi]: 2048 per texel
 CACHE_ENVIRONMENTS = 2          # environments kept per device
 
 # env_params layout (kernels/environment.h ENV_P_*)
@@ -95,7 +95,7 @@ def env_params(intensity: float = 1.0, rotation_deg: float = 0.0, specular_level
     return p
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class IblMaps:
     """One environment's maps on one device (and the device's DFG table). `args()` gives the
     kernel arguments of environment.h's ENV_PARAMS."""
@@ -120,13 +120,14 @@ class IblMaps:
         """(env_texels, env_levels, env_sh, env_dfg, env_params): the ENV_PARAMS arguments, with a
         params buffer per (intensity, rotation) (a few are kept)."""
         key = (float(intensity), float(rotation_deg))
-        buf = self._params.get(key)
-        if buf is None:
-            if len(self._params) >= 8:
-                self._params.pop(next(iter(self._params)))
-            buf = cl.Buffer(self.texels.context, cl.mem_flags.READ_ONLY | cl.mem_flags.COPY_HOST_PTR,
-                            hostbuf=self.params(intensity, rotation_deg))
-            self._params[key] = buf
+        with _lock:
+            buf = self._params.get(key)
+            if buf is None:
+                if len(self._params) >= 8:
+                    self._params.pop(next(iter(self._params)))
+                buf = cl.Buffer(self.texels.context, cl.mem_flags.READ_ONLY | cl.mem_flags.COPY_HOST_PTR,
+                                hostbuf=self.params(intensity, rotation_deg))
+                self._params[key] = buf
         return (self.texels, self.levels, self.sh, self.dfg, buf)
 
     def level(self, queue, index: int) -> np.ndarray:
@@ -158,8 +159,6 @@ class IblMaps:
         return out
 
 
-import os, json
-_EXTRA = json.loads(os.environ.get('IBL_DEFINES', '{}'))
 _lock = threading.RLock()
 _env_cache: dict = {}       # Device -> OrderedDict(key -> IblMaps)
 _dfg_cache: dict = {}       # (Device, size, samples) -> cl.Buffer
@@ -173,23 +172,37 @@ def clear_cache() -> None:
 
 def _kernels(device):
     vec = capabilities.pixel_vector_width(device.cl_device)
-    defines = {"VEC": vec, **_EXTRA}
-    names = ("ibl_box", "ibl_sh_rows", "ibl_sh_reduce", "ibl_sample_table", "ibl_prefilter", "ibl_dfg")
+    defines = {"VEC": vec}
+    names = ("ibl_box", "ibl_copy", "ibl_sh_rows", "ibl_sh_reduce", "ibl_sample_table", "ibl_prefilter", "ibl_dfg")
     return vec, ProgramSpec.of(SOURCE, defines), {n: device.kernel(SOURCE, n, defines) for n in names}
 
 
-def dfg_table(device, queue=None, size: int = DFG_SIZE, samples: int = DFG_SAMPLES) -> cl.Buffer:
-    """The split-sum table on `device` (float32 (size, size, 3)), computed once per device."""
+def gauss_legendre01(k: int) -> np.ndarray:
+    """float32 (k, 2): Gauss-Legendre nodes and weights on [0, 1]."""
+    x, w = np.polynomial.legendre.leggauss(int(k))
+    return np.ascontiguousarray(np.stack([0.5 * (x + 1.0), 0.5 * w], 1), np.float32)
+
+
+def dfg_table(device, queue=None, size: int = DFG_SIZE, samples: tuple = DFG_SAMPLES,
+              cache: bool = True) -> cl.Buffer:
+    """The split-sum table on `device` (float32 (size, size, 3): row j at roughness j / (size - 1), column i
+    at n.v = (i + 0.5) / size; A, B, C),
+    computed once per device. samples = (Gauss-Legendre nodes along theta, nodes per half of phi)."""
     queue = queue or device.queue
-    key = (device, int(size), int(samples))
+    ks, kp = (int(v) for v in samples)
+    key = (device, int(size), ks, kp)
     with _lock:
-        buf = _dfg_cache.get(key)
+        buf = _dfg_cache.get(key) if cache else None
         if buf is None:
             vec, _, k = _kernels(device)
-            buf = cl.Buffer(device.context, cl.mem_flags.READ_WRITE, size * size * 3 * 4)
+            mf = cl.mem_flags
+            buf = cl.Buffer(device.context, mf.READ_WRITE, size * size * 3 * 4)
+            gs = cl.Buffer(device.context, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=gauss_legendre01(ks))
+            gp = cl.Buffer(device.context, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=gauss_legendre01(kp))
             g, l = launch_2d(-(-size // vec), size)
-            k["ibl_dfg"](queue, g, l, buf, np.int32(size), np.int32(samples))
-            _dfg_cache[key] = buf
+            k["ibl_dfg"](queue, g, l, buf, np.int32(size), gs, np.int32(ks), gp, np.int32(kp))
+            if cache:
+                _dfg_cache[key] = buf
         return buf
 
 
@@ -201,7 +214,7 @@ def pixels_key(pixels: np.ndarray) -> str:
 
 def ibl_maps(device, queue, pixels: np.ndarray, key: Hashable = None, *,
              specular_levels: int = DEFAULT_SPECULAR_LEVELS, max_width: int = DEFAULT_MAX_WIDTH,
-             samples: Optional[tuple] = None, dfg_size: int = DFG_SIZE, dfg_samples: int = DFG_SAMPLES,
+             samples: Optional[tuple] = None, dfg_size: int = DFG_SIZE, dfg_samples: tuple = DFG_SAMPLES,
              cache: bool = True) -> IblMaps:
     """The IBL maps of the equirectangular environment `pixels` ((H, W, 3) float32 linear RGB,
     finite, >= 0) on `device` (a clrender.device.Device), enqueued on `queue` (None: the device's).
@@ -213,7 +226,7 @@ def ibl_maps(device, queue, pixels: np.ndarray, key: Hashable = None, *,
         raise ValueError("specular_levels must be >= 1")
     if key is None:
         key = pixels_key(pixels)
-    full_key = (key, int(specular_levels), int(max_width), samples, int(dfg_size), int(dfg_samples))
+    full_key = (key, int(specular_levels), int(max_width), samples, int(dfg_size), tuple(dfg_samples))
     with _lock:
         per_device = _env_cache.setdefault(device, OrderedDict())
         if cache and full_key in per_device:
@@ -266,17 +279,23 @@ def _precompute(device, queue, pixels, key, K, max_width, samples, dfg_size, dfg
         mip_levels = cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=mtable)
         sh = cl.Buffer(ctx, mf.READ_WRITE, 27 * 4)
         partial = cl.Buffer(ctx, mf.READ_WRITE, 27 * H * 4)
-        events["upload"] = [cl.enqueue_copy(queue, texels, pixels, is_blocking=False)]
+        # The environment goes to its own buffer, then a kernel copies it into level 0: Oclgrind 21.10's
+        # checker reports reads of a buffer the host wrote as uninitialized once a kernel has used it
+        # as both source and destination (the box resize into the chain's level 0 does).
+        env = cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=pixels)
+        g, l = launch_1d(W * H * 3)
+        events["upload"] = [k["ibl_copy"](queue, g, l, env, np.int32(0), texels, np.int32(0), np.int32(W * H * 3))]
         stage.advance("upload")
 
         # the specular chain's level 0 and the prefilter's source chain
         ev = []
         if not alias:
             g, l = launch_2d(w0, h0)
-            ev.append(k["ibl_box"](queue, g, l, texels, np.int32(0), np.int32(W), np.int32(H),
+            ev.append(k["ibl_box"](queue, g, l, env, np.int32(0), np.int32(W), np.int32(H),
                                    texels, np.int32(table[1][0]), np.int32(w0), np.int32(h0)))
-        ev.append(cl.enqueue_copy(queue, mips, texels, byte_count=w0 * h0 * 12, src_offset=int(table[1][0]) * 12,
-                                  dst_offset=0))
+        g, l = launch_1d(w0 * h0 * 3)
+        ev.append(k["ibl_copy"](queue, g, l, env if alias else texels, np.int32(3 * table[1][0]), mips, np.int32(0),
+                                np.int32(w0 * h0 * 3)))
         for m in range(1, len(msizes)):
             (sw, sh_), (dw, dh) = msizes[m - 1], msizes[m]
             g, l = launch_2d(dw, dh)
@@ -302,13 +321,50 @@ def _precompute(device, queue, pixels, key, K, max_width, samples, dfg_size, dfg
         stage.advance("prefilter")
 
         g, l = launch_1d(H)
-        ev = [k["ibl_sh_rows"](queue, g, l, texels, np.int32(W), np.int32(H), partial)]
+        ev = [k["ibl_sh_rows"](queue, g, l, env, np.int32(W), np.int32(H), partial)]
         g, l = launch_1d(27)
         ev.append(k["ibl_sh_reduce"](queue, g, l, partial, np.int32(H), sh))
         events["sh"] = ev
         stage.advance("irradiance")
 
         dfg = dfg_table(device, queue, dfg_size, dfg_samples)
-    # scratch buffers (mips, partial) are released by the runtime once the queued kernels are done
+    # the scratch buffers (env, mips, mip_levels, partial, sample_table) are released by the runtime
+    # once the kernels queued on them are done
     return IblMaps(texels=texels, levels=levels, sh=sh, dfg=dfg, level_table=table, width=W, height=H,
                    specular_levels=K, dfg_size=int(dfg_size), samples=samples, key=key, events=events)
+
+
+# -- the pass --------------------------------------------------------------------------------------
+# The scene's environment (Scene.set_environment) made ready for the lighting passes: its maps
+# precomputed once per environment (ibl_maps, cached), then every frame only the ENV_PARAMS
+# arguments with its intensity and rotation. A scene without an environment launches no kernel:
+# the lighting passes get 1-element placeholders and has_env = 0 (the constant `scene.ambient`).
+
+ENV_OUTPUTS = ("env_args", "has_env", "env_background")
+
+
+class IblPass(RenderPass):
+    name = "ibl"
+    inputs = ("environment",)
+    outputs = ENV_OUTPUTS
+
+    def __init__(self, device, config):
+        super().__init__(device, config)
+        self.placeholder = tuple(zeros(self.queue, 8, dt).data for dt in
+                                 (np.float32, np.int32, np.float32, np.float32, np.float32))
+
+    def publish(self, res):
+        env = res["environment"]
+        if env is None:
+            res.values.update(env_args=self.placeholder, has_env=0, env_background=0)
+
+    def run(self, res):
+        env = res["environment"]
+        maps = ibl_maps(self.device, self.queue, env.pixels, key=env.key)
+        res.values.update(env_args=maps.args(env.intensity, env.rotation_deg), has_env=1,
+                          env_background=int(env.background))
+
+
+def env_kernel_args(res) -> tuple:
+    """(has_env, env_background, *ENV_PARAMS) for a lighting kernel."""
+    return (np.int32(res["has_env"]), np.int32(res["env_background"]), *res["env_args"])

@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 
 from .base import empty
-from .ibl_pass import ENV_OUTPUTS
+from .ibl import ENV_OUTPUTS
 from .shade import ShadePass
 
 PRECISIONS = {"float32": (np.float32, 0), "float16": (np.float16, 1)}

@@ -11,7 +11,7 @@ import numpy as np
 from .. import capabilities
 from .. import gbuffer as layout
 from .base import SCENE_INPUTS, RenderPass, empty, round_up, scene_args, view_defines
-from .ibl_pass import ENV_OUTPUTS, env_kernel_args
+from .ibl import ENV_OUTPUTS, env_kernel_args
 from .light_buffer import PRECISIONS, gltf_sums
 from .second_geometry import sample_offsets
 

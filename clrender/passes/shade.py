@@ -9,7 +9,7 @@ from dataclasses import dataclass
 
 from .. import capabilities, structs
 from .. import gbuffer as layout
-from .ibl_pass import ENV_OUTPUTS, env_kernel_args
+from .ibl import ENV_OUTPUTS, env_kernel_args
 from .base import RenderPass, empty, view_defines, zeros
 
 
