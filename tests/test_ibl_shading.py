@@ -178,3 +178,47 @@ def test_environment_replaces_ambient_and_no_environment_launches_no_ibl_kernel(
     dark = r.render(scene, CAMERA)
     assert "ibl_ms" in dark.stats
     assert (dark.color == 0).all()
+
+
+def test_shading_names_are_checked():
+    with pytest.raises(ValueError, match="shading"):
+        RenderConfig(shading="phong")
+    with pytest.raises(TypeError):
+        RenderConfig(shade="auto")
+
+
+def test_ssao_and_occlusion_multiply_the_environment_and_fragments_get_it(device):
+    """SSAO scales the environment's light (the report's occlusion pass on the ambient term), and a
+    transparent glTF sphere in front is lit by the environment too (no light in the scene)."""
+    pixels = smooth_environment(16)
+    p, f, n = uv_sphere(24, 48, radius=1.0, center=(0.0, 0.0, 0.0))
+    floor = np.array([[-3, -1.0, -3], [3, -1.0, -3], [3, -1.0, 3], [-3, -1.0, 3]], np.float32)
+    q, g, m = uv_sphere(12, 24, radius=0.3, center=(0.6, -0.3, 1.4))
+    pos = np.concatenate([p, floor, q])
+    nrm = np.concatenate([n, np.tile([[0, 1, 0]], (4, 1)), m]).astype(np.float32)
+    faces = np.concatenate([f, np.array([[0, 2, 1], [0, 3, 2]]) + len(p), g + len(p) + 4])
+    mats = np.concatenate([np.zeros(len(f)), np.ones(2), np.full(len(g), 2)]).astype(np.int32)
+    scene = Scene(pos, nrm, np.zeros((len(pos), 2), np.float32), faces, mats,
+                  [Material("ball", (0.8, 0.8, 0.8, 1), metallic=0.0, roughness=0.6),
+                   Material("floor", (0.7, 0.7, 0.7, 1), metallic=0.0, roughness=0.9),
+                   Material("glass", (0.5, 0.7, 1.0, 1), metallic=0.0, roughness=0.2, opacity=0.5)])
+    scene.ambient = 0.0
+    scene.set_environment(pixels, background=False)
+    cam = Camera.look_at((0.0, 0.5, 3.2), (0.0, -0.3, 0.0), fov_y_deg=45.0, near=0.5, far=20.0)
+    plain = Renderer(W, H, device=device.id).render(scene, cam)
+    occluded = Renderer(W, H, device=device.id, ssao=True, ssao_radius=0.5).render(scene, cam)
+    opaque = (plain.fragment_count == 0) & (plain.triangle_id >= 0)
+    ratio = occluded.color[opaque].sum(-1) / plain.color[opaque].sum(-1)
+    np.testing.assert_allclose(ratio, occluded.ao[opaque], rtol=2e-3, atol=1e-4)   # every term × ao
+    assert (occluded.ao[opaque] < 0.9).any()                                       # the contact darkens
+    glass = plain.fragment_count > 0
+    assert glass.any()
+    # colour = T·(what lies behind) + the fragment's own light: without the glass, what lies behind
+    k = len(p) + 4
+    behind_scene = Scene(pos[:k], nrm[:k], np.zeros((k, 2), np.float32), faces[:len(f) + 2], mats[:len(f) + 2],
+                         scene.materials[:2])
+    behind_scene.ambient = 0.0
+    behind_scene.set_environment(pixels, background=False)
+    behind = Renderer(W, H, device=device.id).render(behind_scene, cam).color
+    own = plain.color[glass] - plain.transmittance[glass][:, None] * behind[glass]
+    assert (own > 0.02).all(), own.min()          # the fragments are lit by the environment
