@@ -24,8 +24,17 @@ def test_compare_float_tolerances():
     near = color + np.float32(1e-4)                 # 0.5e-4 of peak: inside 1e-4·peak
     assert check.compare("color", color, near)[-1]
     far = color.copy()
-    far[0, 0, 0] += 1e-3
+    far[0, 0, 0] += 1e-2                            # 5e-3 of the value, 5e-3 of peak: over both
     assert not check.compare("color", color, far)[-1]
+    dim = color.copy()
+    dim[1, 1, 1] = 0.02                             # a dim value off by 5e-4 of peak and 5% of itself
+    off = dim.copy()
+    off[1, 1, 1] += np.float32(1e-3)
+    assert not check.compare("color", dim, off)[-1]
+    peak = color.copy()
+    peak[3, 3, 0] = 400.0                           # a GGX highlight: within 1e-3 of itself passes
+    assert check.compare("color", peak, peak + np.float32(0.2) * (peak == 400.0))[-1]
+    assert not check.compare("color", peak, peak + np.float32(0.8) * (peak == 400.0))[-1]
     nan = color.copy()
     nan[2, 2, 1] = np.nan
     assert not check.compare("color", color, nan)[-1], "NaN must never pass"

@@ -360,7 +360,7 @@ class IblPass(RenderPass):
 
     def run(self, res):
         env = res["environment"]
-        maps = ibl_maps(self.device, self.queue, env.pixels, key=env.key)
+        maps = ibl_maps(self.device, self.queue, env.pixels, key=env.key, dfg_size=DFG_SIZE, dfg_samples=DFG_SAMPLES)
         res.values.update(env_args=maps.args(env.intensity, env.rotation_deg), has_env=1,
                           env_background=int(env.background))
 
