@@ -179,3 +179,15 @@ def pytest_terminal_summary(terminalreporter):
     files = ", ".join(f"{name} {n}" for name, n in sorted(per_file.items(), key=lambda kv: (-kv[1], kv[0])))
     terminalreporter.write_line(f"clrender: {device_module.Device.build_count} OpenCL program builds "
                                 f"({sum(per_file.values())} distinct programs: {files})")
+
+
+def blinn_phong_renderer_fixture():
+    """A module's `make_renderer` that defaults to shading="blinn_phong" (tests of the report's
+    mapping of metallic-roughness materials): `make_renderer = blinn_phong_renderer_fixture()`."""
+    @pytest.fixture(name="make_renderer")
+    def _make_renderer(make_renderer):
+        def factory(width, height, **opts):
+            opts.setdefault("shading", "blinn_phong")
+            return make_renderer(width, height, **opts)
+        return factory
+    return _make_renderer

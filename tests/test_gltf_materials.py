@@ -18,6 +18,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from conftest import blinn_phong_renderer_fixture
+
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
 from gltf_files import QUAD_INDICES, QUAD_NORMALS, QUAD_POSITIONS, QUAD_UVS, primitive, write_gltf  # noqa: E402
@@ -27,15 +29,9 @@ from clrender.scene import Material, SceneError, UVTransform  # noqa: E402
 from clrender.tangents import generate_tangents  # noqa: E402
 
 
-@pytest.fixture
-def make_renderer(make_renderer):
-    """These tests check the report's Blinn-Phong mapping of metallic-roughness materials
-    (docs/materials.md), so they render with shading="blinn_phong"; the glTF BRDF that
-    shading="auto" uses has its own reference in tests/test_brdf.py."""
-    def factory(width, height, **opts):
-        opts.setdefault("shading", "blinn_phong")
-        return make_renderer(width, height, **opts)
-    return factory
+# These tests check the report's Blinn-Phong mapping of metallic-roughness materials
+# (docs/materials.md); the glTF BRDF of shading="auto" has its reference in tests/test_brdf.py.
+make_renderer = blinn_phong_renderer_fixture()
 
 
 SHARED = Path(__file__).resolve().parents[1].parent / "shared" / "scenes"

@@ -37,6 +37,8 @@ import sys
 import numpy as np
 import pytest
 
+from conftest import blinn_phong_renderer_fixture
+
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
 from clrender import Camera, Material, Scene  # noqa: E402
@@ -47,15 +49,9 @@ from reference.gltf_writer import CLAMP, MIRROR, REPEAT, write_gltf  # noqa: E40
 from helpers import shared_file  # noqa: E402
 
 
-@pytest.fixture
-def make_renderer(make_renderer):
-    """These tests check the report's Blinn-Phong mapping of metallic-roughness materials
-    (docs/materials.md), so they render with shading="blinn_phong"; the glTF BRDF that
-    shading="auto" uses has its own reference in tests/test_brdf.py."""
-    def factory(width, height, **opts):
-        opts.setdefault("shading", "blinn_phong")
-        return make_renderer(width, height, **opts)
-    return factory
+# These tests check the report's Blinn-Phong mapping of metallic-roughness materials
+# (docs/materials.md); the glTF BRDF of shading="auto" has its reference in tests/test_brdf.py.
+make_renderer = blinn_phong_renderer_fixture()
 
 
 
