@@ -37,6 +37,11 @@ file play together on one timeline (a later channel on the same node and path wi
 is the last key time over all channels. Channels on morph target `weights`, channels without a
 target node (KHR_animation_pointer) and channels on nodes given by a `matrix` (not allowed by the
 spec) are ignored with one warning per file and kind, through the loader's feature warnings.
+
+Morph target `weights` channels (one value per target and key; CUBICSPLINE: in-tangent, value and
+out-tangent triplets of T values each) sample the same way; with the joint nodes' world matrices
+they become the pose state of `Scene.deformation` (clrender.deform), which the device applies. Node
+transforms are computed for every node of the file (joints may sit outside the default scene).
 """
 from __future__ import annotations
 
@@ -49,6 +54,8 @@ from .errors import SceneError
 
 PATHS = {"translation": 3, "rotation": 4, "scale": 3}
 INTERPOLATIONS = ("LINEAR", "STEP", "CUBICSPLINE")
+# posing times are rounded to 1 / this of a second (Animation._state_at)
+TICKS_PER_SECOND = 1e9
 # singular values below this fraction of the largest are raised to it when posing (see module doc)
 MIN_RELATIVE_SCALE = 1e-4
 
@@ -134,7 +141,7 @@ class Sampler:
 @dataclass
 class Channel:
     node: int
-    path: str                     # translation, rotation or scale
+    path: str                     # translation, rotation, scale or weights
     sampler: Sampler
 
 
@@ -152,6 +159,8 @@ class Animation:
     directional_nodes: list = field(default_factory=list)  # (index in settings["directional_lights"], node)
 
     def __post_init__(self):
+        self._rest_local = None      # node -> rest local matrix (local_matrices)
+        self._recent: list = []      # [(t, (world, weights))]: the last two states (_state_at)
         targeted = {c.node for c in self.channels}
         self.animated = set()     # nodes whose world matrix changes: targeted ones and their descendants
         for n in self.order:
@@ -164,23 +173,52 @@ class Animation:
         return max((float(c.sampler.times[-1]) for c in self.channels), default=0.0)
 
     # -- node transforms ------------------------------------------------------------------------------
-    def local_matrices(self, t: float) -> dict:
-        """node -> local 4x4 at time t."""
-        trs = {n: dict(r) for n, r in self.rest.items()}
+    def local_matrices(self, t: float, rest: bool = False) -> dict:
+        """node -> local 4x4 at time t (rest: the nodes' own transforms, no channel). The rest
+        matrices are computed once; a sampler shared by several channels is sampled once."""
+        if self._rest_local is None:
+            self._rest_local = {n: _local(r) for n, r in self.rest.items()}
+        out = dict(self._rest_local)
+        if rest:
+            return out
+        trs, sampled = {}, {}
         for c in self.channels:
-            trs[c.node][c.path] = c.sampler.sample(float(t), rotation=c.path == "rotation")
-        return {n: (np.asarray(r["matrix"], np.float64) if "matrix" in r else
-                    trs_matrix(r.get("translation", (0.0, 0.0, 0.0)), r.get("rotation", (0.0, 0.0, 0.0, 1.0)),
-                               r.get("scale", (1.0, 1.0, 1.0))))
-                for n, r in trs.items()}
+            if c.path == "weights":
+                continue
+            key = (id(c.sampler), c.path == "rotation")
+            if key not in sampled:
+                sampled[key] = c.sampler.sample(float(t), rotation=c.path == "rotation")
+            trs.setdefault(c.node, dict(self.rest[c.node]))[c.path] = sampled[key]
+        for n, r in trs.items():
+            out[n] = _local(r)
+        return out
 
-    def world_matrices(self, t: float) -> dict:
-        """node -> world 4x4 at time t, for the nodes of the default scene."""
-        local = self.local_matrices(t)
+    def world_matrices(self, t: float, rest: bool = False) -> dict:
+        """node -> world 4x4 at time t (rest: the nodes' own transforms)."""
+        local = self.local_matrices(t, rest)
         world: dict = {}
         for n in self.order:
             world[n] = world[self.parent[n]] @ local[n] if n in self.parent else local[n]
         return world
+
+    def node_weights(self, t: float) -> dict:
+        """node -> morph weights (T,) at time t, for the nodes a `weights` channel animates."""
+        return {c.node: c.sampler.sample(float(t)) for c in self.channels if c.path == "weights"}
+
+    def _state_at(self, t: float) -> tuple:
+        """(world matrices, node weights) at time t rounded to the nanosecond (TICKS_PER_SECOND), so that
+        a frame's t - dt and the previous frame's t, equal up to float rounding, are one time: the
+        same pose bits whatever order frames render in, and the pose pass can keep the last frame's
+        positions as the previous ones (clrender/passes/pose.py). The last two states are kept, so
+        a frame sequence samples once per frame."""
+        if abs(t) < 1e6:
+            t = round(t * TICKS_PER_SECOND) / TICKS_PER_SECOND     # the decimal's nearest double
+        for kept_t, state in self._recent:
+            if kept_t == t:
+                return state
+        state = (self.world_matrices(t), self.node_weights(t))
+        self._recent = [(t, state)] + self._recent[:1]
+        return state
 
     def node_matrix(self, node: int, t: float) -> np.ndarray:
         return self.world_matrices(t)[node]
@@ -219,8 +257,11 @@ class Animation:
         t = float(t)
         if not np.isfinite(t) or (dt is not None and not np.isfinite(float(dt))):
             raise SceneError(f"{self.source}: animation time must be finite, got t={t!r} dt={dt!r}")
-        world = self.world_matrices(t)
-        before = None if dt is None else self.world_matrices(t - float(dt))
+        before, before_weights = (None, None) if dt is None else self._state_at(t - float(dt))
+        world, weights = self._state_at(t)
+        deformation = getattr(scene, "deformation", None)
+        if deformation is not None:        # skins and morph targets: the device poses them (clrender.deform)
+            deformation.set_pose(world, weights, before, before_weights)
         for m, node, inv_build in self.meshes:
             cur = _regular(world[node] @ inv_build)
             prev = None if before is None else _regular(before[node] @ inv_build)
@@ -256,6 +297,14 @@ class Animation:
         return previous_camera
 
 
+def _local(r: dict) -> np.ndarray:
+    """A node's local 4x4 from its rest/animated {"matrix"} or {"translation", "rotation", "scale"}."""
+    if "matrix" in r:
+        return np.asarray(r["matrix"], np.float64)
+    return trs_matrix(r.get("translation", (0.0, 0.0, 0.0)), r.get("rotation", (0.0, 0.0, 0.0, 1.0)),
+                      r.get("scale", (1.0, 1.0, 1.0)))
+
+
 def _regular(matrix: np.ndarray) -> np.ndarray:
     """`matrix` with its 3x3 singular values raised to MIN_RELATIVE_SCALE x the largest (1e-6 when
     all are 0), so `Scene.set_transform` accepts it; unchanged when already well conditioned."""
@@ -271,7 +320,7 @@ def _regular(matrix: np.ndarray) -> np.ndarray:
 
 
 # -- reading a glTF document ----------------------------------------------------------------------------
-def _sampler(doc, a: int, s: int, sampler: dict, path: str) -> Sampler:
+def _sampler(doc, a: int, s: int, sampler: dict, path: str, targets: int = 0) -> Sampler:
     what = f"animation {a} sampler {s}"
     interpolation = sampler.get("interpolation", "LINEAR")
     if interpolation not in INTERPOLATIONS:
@@ -285,7 +334,12 @@ def _sampler(doc, a: int, s: int, sampler: dict, path: str) -> Sampler:
         raise doc.err(f"{what}: no keyframes")
     if not np.isfinite(times).all() or (np.diff(times) <= 0).any():
         raise doc.err(f"{what}: input times must be finite and strictly increasing")
-    if values.ndim != 2 or values.shape[1] != PATHS[path]:
+    if path == "weights":         # scalars, `targets` per key (per element of a CUBICSPLINE triplet)
+        if values.ndim != 2 or values.shape[1] != 1 or targets < 1 or values.shape[0] % targets:
+            raise doc.err(f"{what}: weights output must be scalars, a multiple of the {targets} morph targets, "
+                          f"got shape {values.shape}")
+        values = values.reshape(-1, targets)
+    elif values.ndim != 2 or values.shape[1] != PATHS[path]:
         raise doc.err(f"{what}: {path} output must have {PATHS[path]} components, got shape {values.shape}")
     expected = 3 * n if interpolation == "CUBICSPLINE" else n
     if len(values) != expected or not np.isfinite(values).all():
@@ -312,17 +366,20 @@ def from_document(doc, order: list, features: dict) -> Optional[Animation]:
         for c, ch in enumerate(anim.get("channels", [])):
             target = ch.get("target", {}) if isinstance(ch, dict) else {}
             path, node = target.get("path"), target.get("node")
-            if path == "weights":
-                features.setdefault("animations of morph target weights", "ignored")
-                continue
             if node is None:     # KHR_animation_pointer: already warned as an unsupported extension
                 if not any("KHR_animation_pointer" in f for f in features):
                     features.setdefault(f"animation channels without a target node (path {path!r})", "ignored")
                 continue
-            if path not in PATHS:
+            if path not in PATHS and path != "weights":
                 raise doc.err(f"animation {a} channel {c}: unknown target path {path!r}")
             doc.get("nodes", node, f"animation {a} channel {c}")
-            if "matrix" in nodes[node]:
+            targets = 0
+            if path == "weights":
+                targets = morph_target_count(doc, nodes[node].get("mesh"))
+                if not targets:
+                    raise doc.err(f"animation {a} channel {c} animates the weights of node {node}, whose mesh "
+                                  f"has no morph targets")
+            elif "matrix" in nodes[node]:
                 features.setdefault("animations of nodes given by a matrix", "ignored (the spec forbids them)")
                 continue
             s = ch.get("sampler")
@@ -330,21 +387,53 @@ def from_document(doc, order: list, features: dict) -> Optional[Animation]:
                 raise doc.err(f"animation {a} channel {c} references sampler {s!r}, which does not exist "
                               f"(there are {len(samplers)})")
             if (s, path) not in cache:
-                cache[(s, path)] = _sampler(doc, a, s, samplers[s], path)
+                cache[(s, path)] = _sampler(doc, a, s, samplers[s], path, targets)
             channels.append(Channel(int(node), path, cache[(s, path)]))
-    if not channels:
-        return None
+    return rig(doc, order, channels) if channels else None
+
+
+def morph_target_count(doc, mesh) -> int:
+    """Morph targets of glTF mesh `mesh` (its primitives' most; 0 without a mesh)."""
+    if mesh is None:
+        return 0
+    return max((len(p.get("targets", [])) for p in doc.get("meshes", mesh, "node mesh").get("primitives", [])),
+               default=0)
+
+
+def full_order(doc, order: list) -> list:
+    """Every node of the file, parents before children: the default scene's `order`, then the
+    trees of the other root nodes (joints may sit outside the default scene)."""
+    nodes = doc.list("nodes")
+    seen, out = set(order), list(order)
+    children = {c for node in nodes for c in node.get("children", [])}
+    for root in range(len(nodes)):
+        if root in seen or root in children:
+            continue
+        stack = [root]
+        while stack:
+            n = stack.pop()
+            if n in seen:
+                continue
+            seen.add(n)
+            out.append(n)
+            stack.extend(reversed(nodes[n].get("children", [])))
+    return out
+
+
+def rig(doc, order: list, channels: Optional[list] = None) -> Animation:
+    """An Animation over every node of the file (full_order) with `channels` (none: a rig that
+    only gives rest transforms, for skins of a file without animations)."""
+    nodes = doc.list("nodes")
+    everything = full_order(doc, order)
     rest = {}
-    for n in order:
+    for n in everything:
         node = nodes[n]
         if "matrix" in node:
             rest[n] = {"matrix": np.asarray(node["matrix"], np.float64).reshape(4, 4).T}
         else:
             rest[n] = {k: np.asarray(node[k], np.float64) for k in PATHS if k in node}
-    parent = {c: n for n in order for c in nodes[n].get("children", [])}
-    in_scene = set(order)
-    channels = [c for c in channels if c.node in in_scene]      # nodes outside the default scene: not drawn
-    return Animation(rest, parent, list(order), channels, str(doc.path)) if channels else None
+    parent = {c: n for n in everything for c in nodes[n].get("children", [])}
+    return Animation(rest, parent, everything, list(channels or []), str(doc.path))
 
 
 def bind(animation: Animation, doc, order: list, scene) -> None:

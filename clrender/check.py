@@ -187,6 +187,13 @@ def default_cases(width: int, height: int) -> list[tuple[str, Scene, Camera]]:
     lit = _materials_case(rng)
     lit.set_environment(_check_environment(rng), intensity=0.8, rotation_deg=25.0)
     cases.append(("environment", lit, Camera.look_at((0, 0.5, 1.5), (0, 0, -3), near=0.1, far=50)))
+    # Skins, morph targets and animated weights posed by the device (kernels/pose.cl), with the
+    # velocity of the two poses.
+    worm = REPO_SCENES / "worm.gltf"
+    if worm.is_file():
+        skinned = load_scene(worm)
+        skinned.pose(0.7, dt=1 / 24)
+        cases.append(("skinned", skinned, skinned.camera))
     return cases
 
 

@@ -413,6 +413,9 @@ def cmd_info(args) -> int:
     scene = _load(args.scene)
     summary = scene.summary()
     summary["settings"] = scene.settings
+    from .gltf_info import empty_details, format_details, gltf_details, is_gltf
+    gltf = is_gltf(path)
+    summary.update(gltf_details(path) if gltf else empty_details())   # always present: [] unless glTF
     if args.json:
         print(json.dumps(summary, indent=2, default=_json_default))
         return 0
@@ -441,6 +444,8 @@ def cmd_info(args) -> int:
     width = max(len(k) for k, _ in lines)
     for k, v in lines:
         print(f"{k.ljust(width)}  {v}")
+    if gltf:
+        print("\n".join(format_details(summary)))
     return 0
 
 

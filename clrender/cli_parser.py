@@ -295,7 +295,8 @@ def build_parser() -> argparse.ArgumentParser:
 
     i = sub.add_parser("info", help="describe a scene file",
                        description="Triangles, vertices, meshes, materials, textures, bounds and camera "
-                                   "of a scene file.")
+                                   "of a scene file; for glTF also its skins, morph targets, animations and "
+                                   "extensions.")
     i.add_argument("scene", metavar="SCENE")
     i.add_argument("--json", action="store_true", help="print JSON instead of text")
     return parser

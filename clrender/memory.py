@@ -10,6 +10,8 @@ resolution: ShadowPass checks the atlas against the device's limits before alloc
 """
 from __future__ import annotations
 
+from collections.abc import Mapping
+
 import pyopencl as cl
 import pyopencl.array as cla
 
@@ -184,8 +186,8 @@ def _buffers(value, out: dict) -> None:
             out[buf.int_ptr] = int(buf.size)
     elif isinstance(value, cl.Buffer):
         out[value.int_ptr] = int(value.size)
-    elif isinstance(value, dict):
-        for v in value.values():
+    elif isinstance(value, Mapping):            # dicts, and weak-keyed caches (the pose pass's bind data)
+        for v in list(value.values()):
             _buffers(v, out)
     elif isinstance(value, (list, tuple)):
         for v in value:
@@ -202,6 +204,8 @@ def held_bytes(pipeline, scene_res) -> dict:
     by_owner = {}
     owners = [("scene", scene_res.buffers), ("pipeline", (pipeline.matrices, pipeline.constants))]
     owners += [(p.name, vars(p)) for p in pipeline.passes]
+    if pipeline.pose_pass is not None:          # skins and morph targets (bind data, palette, previous positions)
+        owners.append(("pose", vars(pipeline.pose_pass)))
     for name, value in owners:
         found: dict = {}
         _buffers(value, found)

@@ -117,6 +117,8 @@ class Pipeline:
         # (its unread AOVs copied aside on the device) before the next frame overwrites them.
         self.snapshots = SnapshotPool(self.queue, min(device.cl_device.global_mem_size // 8, 1 << 30))
         self._pending = None
+        self.pose_pass = None           # skins and morph targets: built for the first deformed scene
+        self._pose_timing = None        # its profiling markers for the next frame's stats
         self._totals = None           # the overflow totals gathered for one read
         self._launched: set = set()   # passes launched at least once (their kernels compiled)
         self._built: set = set()      # passes whose programs are all built
@@ -164,6 +166,22 @@ class Pipeline:
             from .passes.hatching import HatchingPass
             chain.append(HatchingPass(device, config))
         return chain + [EncodePass(device, config)]
+
+    def pose(self, upload, res: Resources) -> None:
+        """Skinned and morphing vertices (Scene.deformation) posed on the device into `res` before
+        the frame (clrender/passes/pose.py); the rewritten buffers go back into the scene's cached
+        `upload`, so the next frame of an unchanged pose launches nothing."""
+        if self.pose_pass is None:
+            from .passes.pose import PosePass
+            self.pose_pass = PosePass(self.device, self.config)
+        self.pose_pass.prepare_scene(res)
+        start = cl.enqueue_marker(self.queue)
+        self.pose_pass.run(res)
+        self._pose_timing = ("pose", start, cl.enqueue_marker(self.queue)) if self.pose_pass.ran else None
+        for name in ("positions", "normals", "tangents"):
+            upload.buffers[name] = res.buffers[name]
+        if "prev_positions" in upload.buffers:
+            upload.buffers["prev_positions"] = res.buffers["prev_positions"]
 
     def _check_wiring(self):
         produced = {"positions", "normals", "uvs", "tangents", "colors", "n_vertices", "has_colors", "surface_extras",
@@ -269,6 +287,9 @@ class Pipeline:
             if retries > MAX_RETRIES:
                 raise RuntimeError(f"buffers kept overflowing after {MAX_RETRIES} retries: {grown}")
 
+        if self._pose_timing is not None:          # the vertex pre-pass ran before this frame
+            timings.insert(0, self._pose_timing)
+            self._pose_timing = None
         readback = self._readback(res, width, height, transparent)
         clock.lap("readback_ms")
         stats = {f"{name}_ms": (end.profile.end - start.profile.start) * 1e-6 for name, start, end in timings}

@@ -258,12 +258,43 @@ class Renderer:
         gltf = np.array([m.metallic is not None and not m.unlit for m in scene.materials])
         return gltf[scene.triangle_material]
 
+    def _scene_resources(self, scene: Scene):
+        """The scene's device buffers and values for a frame: uploads (cached), lights, and the
+        posed vertices of skinned and morphing meshes (the vertex pre-pass, clrender/passes/pose.py)."""
+        from . import memory, scene_gpu
+        from .passes import Resources
+        if scene_gpu.needs_upload(scene, self.device):
+            memory.check(self.device, self.width, self.height, self.config, scene)
+        upload = scene_gpu.upload(scene, self.device)
+        scene_res = Resources(buffers=dict(upload.buffers), values={
+            **upload.values, **scene_gpu.upload_lights(scene, self.device), "ambient": float(scene.ambient),
+            "particle_systems": tuple(scene.particle_systems), "sun": scene.sun,
+            "environment": getattr(scene, "environment", None), "deformation": scene.deformation})
+        if scene.deformation is not None:
+            self.pipeline.pose(upload, scene_res)
+        return scene_res
+
+    def posed_vertices(self, scene: Scene) -> dict:
+        """The scene's vertices as the device poses them for a frame (Scene.deformation's skins and
+        morph targets at the scene's current pose, `scene.pose(t, dt)`), float32 numpy arrays:
+        positions (V, 3), normals (V, 3), tangents (V, 4) or None, previous_positions (V, 3) or None
+        (no motion). Without a deformation: the scene's own arrays as uploaded."""
+        if not isinstance(scene, Scene):
+            raise TypeError(f"posed_vertices() needs a clrender.Scene, got {type(scene).__name__}")
+        res = self._scene_resources(scene)
+        nv, q = len(scene.positions), self.device.queue
+        tangents = res.buffers["tangents"]
+        prev = res.buffers.get("prev_positions")
+        return {"positions": res.buffers["positions"].get(queue=q)[: 3 * nv].reshape(-1, 3),
+                "normals": res.buffers["normals"].get(queue=q)[: 3 * nv].reshape(-1, 3),
+                "tangents": tangents.get(queue=q)[: 4 * nv].reshape(-1, 4) if tangents.size == 4 * nv else None,
+                "previous_positions": None if prev is None else prev.get(queue=q)[: 3 * nv].reshape(-1, 3)}
+
     def render(self, scene: Scene, camera: Optional[Camera] = None,
                previous_camera: Optional[Camera] = None, time: float = 0.0) -> Frame:
         """Render `scene` from `camera` (default: the scene's). `previous_camera` gives motion
         vectors; `time` (seconds) places the scene's light particles."""
-        from . import memory, scene_gpu
-        from .passes import Resources
+        from . import memory
         start = _time.perf_counter()
         if not isinstance(scene, Scene):
             raise TypeError(f"render() needs a clrender.Scene, got {type(scene).__name__}")
@@ -273,15 +304,9 @@ class Renderer:
             # pipeline of the other kind replaces this one (programs are cached, buffers re-made).
             from .pipeline import Pipeline
             self.pipeline = Pipeline(self.device, self.config, ortho=camera.is_orthographic)
-        if scene_gpu.needs_upload(scene, self.device):
-            memory.check(self.device, self.width, self.height, self.config, scene)
-        scene_res = scene_gpu.upload(scene, self.device)
         if not np.isfinite(time):
             raise ValueError(f"time must be finite, got {time!r}")
-        scene_res = Resources(buffers=dict(scene_res.buffers), values={
-            **scene_res.values, **scene_gpu.upload_lights(scene, self.device), "ambient": float(scene.ambient),
-            "particle_systems": tuple(scene.particle_systems), "sun": scene.sun,
-            "environment": getattr(scene, "environment", None)})
+        scene_res = self._scene_resources(scene)
         if self.config.shading == "blinn_phong":      # the report's model and falloff for everything
             scene_res.buffers["materials"] = scene_res.buffers["materials_blinn_phong"]
             scene_res.values["gltf_scene"] = 0

@@ -19,6 +19,7 @@ from .material import (ALPHA_MODES, LUMA, TEXTURE_SLOTS, Material, UVTransform, 
                        metallic_roughness_to_blinn_phong)
 
 if TYPE_CHECKING:
+    from .deform import Deformation
     from .environment import Environment
 
 WRAP_MODES = ("repeat", "clamp", "mirror")
@@ -121,6 +122,8 @@ class Scene:
     animation: Optional[object] = None          # clrender.animation.Animation (glTF animations); None: static
     environment: Optional["Environment"] = None  # HDR image-based lighting (set_environment); when set,
                                                 # the constant `ambient` term is not added
+    deformation: Optional["Deformation"] = None  # skins and morph targets (clrender.deform): posed on the
+                                                # device; positions/normals/tangents hold the load pose
 
     def __post_init__(self):
         self.positions = np.ascontiguousarray(self.positions, dtype=np.float32).reshape(-1, 3)
@@ -293,6 +296,9 @@ class Scene:
         previous transform holds until the mesh's next set_transform. Vertices the mesh shares
         with other meshes are duplicated first, so triangle ids do not change."""
         m = self._mesh_index(mesh)
+        if self.deformation is not None and m in self.deformation.meshes:
+            raise SceneError(f"{self.source}: mesh {self.mesh_names[m]!r} is deformed by a skin or morph targets; "
+                             f"pose it with scene.pose(t) (its joints and weights), not set_transform")
         cur = _affine_matrix(matrix, "matrix")
         prev = cur if previous is None else _affine_matrix(previous, "previous")
         vertices, rest_p, rest_n, rest_tris = self._rest_pose(m)

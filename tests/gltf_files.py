@@ -123,6 +123,10 @@ def write_gltf(path: Path, primitives: Optional[list] = None, materials: Optiona
             for key in ("input", "output"):
                 if isinstance(sampler.get(key), np.ndarray):
                     sampler[key] = add(sampler[key])
+    for skin in top_level.get("skins", []):         # inverse bind matrices (J, 4, 4) become a MAT4 accessor
+        if isinstance(skin.get("inverseBindMatrices"), np.ndarray):
+            m = np.asarray(skin["inverseBindMatrices"], np.float32).reshape(-1, 4, 4)
+            skin["inverseBindMatrices"] = add(m.transpose(0, 2, 1).reshape(-1, 16))      # column-major
     doc.update(top_level)
     doc["accessors"], doc["bufferViews"] = accessors, views
     doc["buffers"] = [{"byteLength": len(blob),

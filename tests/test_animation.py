@@ -9,6 +9,8 @@ import warnings
 import numpy as np
 import pytest
 
+from clrender.errors import SceneError
+
 from gltf_files import primitive, write_gltf
 from helpers import shared_file
 
@@ -166,16 +168,14 @@ def test_camera_and_lights_follow_their_nodes(tmp_path):
     np.testing.assert_allclose(scene.lights["direction"][1], [0, -S45, -S45], atol=1e-6)   # 45 degrees down
 
 
-def test_morph_weight_channels_are_ignored_with_one_warning(tmp_path):
-    weights = {"channels": [{"sampler": 0, "target": {"node": 0, "path": "weights"}}] * 2,
+def test_weight_channels_need_morph_targets(tmp_path):
+    """A `weights` channel on a node whose mesh has no morph targets: a SceneError naming the node
+    (clrender.deform poses real ones: tests/test_skinning.py)."""
+    weights = {"channels": [{"sampler": 0, "target": {"node": 0, "path": "weights"}}],
                "samplers": [{"input": np.float32([0, 1]), "output": np.float32([0, 1])}]}
-    path = write_gltf(tmp_path / "w.gltf", animations=[weights, weights])
-    with warnings.catch_warnings(record=True) as record:
-        warnings.simplefilter("always")
-        scene = load_scene(path)
-    messages = [str(w.message) for w in record]
-    assert len(messages) == 1 and "morph target weights" in messages[0] and str(path) in messages[0], messages
-    assert scene.animation is None
+    path = write_gltf(tmp_path / "w.gltf", animations=[weights])
+    with pytest.raises(SceneError, match="node 0, whose mesh has no morph targets"):
+        load_scene(path)
 
 
 def test_static_files_have_no_animation(tmp_path):

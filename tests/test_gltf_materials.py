@@ -362,15 +362,15 @@ def test_mikktspace_agreement(rel, meshes, count, left_out, median, p95, worst, 
 
 # -- unsupported features ------------------------------------------------------------------------------------
 def weights_animation() -> dict:
-    """An animation of node 0's morph target weights (ignored, warned)."""
+    """An animation of node 0's morph target weights (one target)."""
     return {"channels": [{"sampler": 0, "target": {"node": 0, "path": "weights"}}],
             "samplers": [{"input": np.float32([0, 1]), "output": np.float32([0, 1])}]}
 
 
 def test_one_warning_per_file_and_feature(tmp_path):
-    """Skins, morph targets, animated morph weights, unknown extensions (in extensionsUsed, on materials, on
-    nodes), point/line and fan primitives, COLOR_1, nearest magnification: each used twice, each
-    warned exactly once naming the file and the feature; the triangles still load."""
+    """Unknown extensions (in extensionsUsed, on materials, on nodes), point/line and fan primitives,
+    COLOR_1, nearest magnification: each used twice, each warned exactly once naming the file and the
+    feature; the triangles still load. Skins, morph targets and animated weights (supported) do not warn."""
     joints = np.zeros((4, 4), np.uint8)
     weights = np.tile(np.float32([1, 0, 0, 0]), (4, 1))
     morph = [{"POSITION": np.zeros((4, 3), np.float32)}]
@@ -391,7 +391,7 @@ def test_one_warning_per_file_and_feature(tmp_path):
         warnings.simplefilter("always")
         scene = load_scene(path)
     messages = [str(w.message) for w in record]
-    features = ["skins", "morph targets", "animations", "KHR_materials_specular", "VENDOR_thing", "EXT_node_magic",
+    features = ["KHR_materials_specular", "VENDOR_thing", "EXT_node_magic",
                 "KHR_materials_variants", "point and line primitives", "TRIANGLE_FAN", "COLOR_1", "magFilter NEAREST"]
     for feature in features:
         hits = [m for m in messages if feature in m]
@@ -399,7 +399,7 @@ def test_one_warning_per_file_and_feature(tmp_path):
         assert hits[0].startswith(str(path)), hits[0]
     assert len(messages) == len(features), messages
     assert all(issubclass(w.category, UserWarning) for w in record)
-    assert not any("KHR_materials_unlit" in m for m in messages)          # supported
+    assert not any("KHR_materials_unlit" in m or "skin" in m or "morph" in m for m in messages)    # supported
     assert scene.triangle_count == 2 * 2 * 2 and scene.materials[0].unlit
 
 
@@ -415,7 +415,7 @@ def test_supported_extensions_do_not_warn(tmp_path):
     assert m.unlit and m.emissive_strength == 2.0 and m.base_color_uv.rotation == 1.0
 
 
-@pytest.mark.parametrize("required", [["KHR_draco_mesh_compression"], ["KHR_materials_unlit", "VENDOR_required"]])
+@pytest.mark.parametrize("required", [["VENDOR_mesh_compression"], ["KHR_materials_unlit", "VENDOR_required"]])
 def test_required_unknown_extension_fails(tmp_path, required):
     path = write_gltf(tmp_path / "req.gltf", extensionsUsed=required, extensionsRequired=required)
     with pytest.raises(SceneError, match=r"req\.gltf") as info:

@@ -575,3 +575,35 @@ def test_environment_and_gltf_brdf_kernels(device, capfd, monkeypatch, options):
     bg = ~fg & (frame.fragment_count == 0)
     assert bg.any() and (frame.color[bg] > 0).all()          # the environment behind
     assert_no_device_diagnostics(capfd)
+
+
+@pytest.mark.filterwarnings("ignore:.*skin weights that do not sum to 1")
+def test_skinned_and_morph_pose_kernels(device, capfd, tmp_path):
+    """pose.cl (morph targets then 8 influences over two weight sets, a mirrored skin, tangents and
+    the previous pose) on a generated rig, against the NumPy reference, then a 24x16 frame of it
+    with the velocity of the two poses."""
+    from test_skinning import rigged_file
+    from reference.skinning_reference import GltfReference
+    path, node = rigged_file(tmp_path, seed=31, influences=8, mirrored=True)
+    scene, ref = clrender.load_scene(path), GltfReference(path)
+    scene.set_environment(None)          # no default studio environment: its precompute is ibl.cl's test
+    scene.add_point_light((0, 0, 3), (2, 2, 2), 10.0)
+    scene.pose(0.7, dt=0.05)
+    r = clrender.Renderer(24, 16, device=device.id, tile_size=8, light_tile_size=8)
+    got = r.posed_vertices(scene)
+    d = scene.deformation.deformers[0]
+    sl = slice(d.first, d.first + d.count)
+    for name, t in (("positions", 0.7), ("previous_positions", 0.65)):
+        p = ref.pose(node, 0, t)[0]
+        np.testing.assert_allclose(got[name][sl], p, atol=3e-5 * max(1.0, np.abs(p).max()))
+    _, n, tg = ref.pose(node, 0, 0.7)
+    np.testing.assert_allclose(got["normals"][sl], n, atol=3e-5)
+    np.testing.assert_allclose(got["tangents"][sl], tg, atol=3e-5)
+    lo, hi = got["positions"][sl].min(0), got["positions"][sl].max(0)
+    c = (lo + hi) / 2
+    cam = Camera.look_at(c + np.array([0.2, 0.3, 1.0]) * 1.1 * np.linalg.norm(hi - lo), c, near=0.1, far=100)
+    frame = r.render(scene, cam)
+    fg = frame.triangle_id >= 0
+    assert fg.mean() > 0.05 and "pose_ms" not in frame.stats      # posed_vertices posed it: no second run
+    assert np.isfinite(frame.velocity[fg]).all() and np.abs(frame.velocity[fg]).max() > 0.1
+    assert_no_device_diagnostics(capfd)

@@ -28,10 +28,14 @@ Also:
   normalTexture and no TANGENT gets `clrender.tangents.generate_tangents` of its world-space
   positions and normals and of the uv set the normal map reads; other primitives (0, 0, 0, 1)
   ("no tangent"); None when no primitive has or needs tangents;
-* animations (translation / rotation / scale channels) -> `Scene.animation`, a
+* animations (translation / rotation / scale / morph `weights` channels) -> `Scene.animation`, a
   `clrender.animation.Animation` (None for static files) that `Scene.pose(t)` applies; the scene
   loads at the nodes' static transforms;
-* what is not rendered -- skins, morph targets, animated morph weights, point/line/fan primitives,
+* skins and morph targets (clrender/loaders/gltf_skin.py) -> `Scene.deformation`
+  (clrender.deform): each node x primitive with a skin or targets keeps its bind attributes; the
+  Scene's arrays hold the pose at load (rest transforms, default weights) and the device poses it
+  per frame (kernels/pose.cl). A skinned mesh ignores its node's transform and keeps its winding;
+* what is not rendered -- point/line/fan primitives,
   COLOR_n for n >= 1, non-default scenes, nearest magnification, any extension outside
   `gltf_document.SUPPORTED_EXTENSIONS` (in extensionsUsed or on any object) -- is collected while
   loading and warned ONCE per file and feature at the end; the rest loads. An extension outside
@@ -66,10 +70,14 @@ from .. import animation as gltf_animation
 from .. import structs
 from ..camera import Camera
 from ..scene import Material, Scene, SceneError
+from ..deform import Deformation
+from ..scene import vertex_normals
+from ..tangents import generate_tangents
 from .common import Piece, assemble, check_faces, world_piece
 from .gltf_document import (MODE_FAN, MODE_STRIP, MODE_TRIANGLES, SUPPORTED_EXTENSIONS, Document, attribute_sets,
                             extensions_in_use, load_document, node_light, punctual_lights)
 from .gltf_geometry import geometry_for
+from .gltf_skin import deformer, read_skins
 from .gltf_materials import load_materials
 from .lights import (AUTO_RADIUS_KEY, DIRECTIONAL_KEY, auto_radius, scene_diagonal, sun_from_directional,
                      warn_directional)
@@ -253,11 +261,6 @@ def _unsupported_features(doc: Document) -> dict[str, str]:
     features: dict[str, str] = {}
     prims = [prim for mesh in doc.list("meshes") for prim in mesh.get("primitives", [])]
     attrs = {a for prim in prims for a in prim.get("attributes", {})}
-    if doc.list("skins") or any("skin" in node for node in doc.list("nodes")) or \
-            any(a.startswith(("JOINTS_", "WEIGHTS_")) for a in attrs):
-        features["skins (skinned meshes)"] = "drawn unskinned, with their nodes' transforms"
-    if any("targets" in prim for prim in prims) or any("weights" in mesh for mesh in doc.list("meshes")):
-        features["morph targets"] = "drawn with their base geometry"
     extra_colors = sorted(a for a in attrs if a.startswith("COLOR_") and a != "COLOR_0")
     if extra_colors:
         features[f"vertex colour sets beyond COLOR_0 ({', '.join(extra_colors)})"] = "ignored"
@@ -269,10 +272,12 @@ def _unsupported_features(doc: Document) -> dict[str, str]:
     return features
 
 
-def _warn_features(doc: Document, features: dict[str, str]) -> None:
-    """One UserWarning per unsupported feature, naming the file and the feature."""
+def _warn_features(doc: Document, features: dict[str, str], notes: dict[str, str]) -> None:
+    """One UserWarning per unsupported feature (and per note on what was repaired), naming the file."""
     for feature, instead in features.items():
         warnings.warn(f"{doc.path}: glTF {feature} not supported: {instead}", stacklevel=4)
+    for note, done in notes.items():
+        warnings.warn(f"{doc.path}: glTF {note}: {done}", stacklevel=4)
 
 
 # -- entry point -------------------------------------------------------------------------------------------
@@ -281,20 +286,24 @@ def load_gltf(path) -> Scene:
     doc = load_document(path)
     order = _traversal(doc)
     features = _unsupported_features(doc)      # {feature: what happens instead}, warned once each at the end
+    notes: dict[str, str] = {}                 # {what was repaired: how}, warned once each at the end
     materials, textures = load_materials(doc, features)     # the images decode from here on
     try:
-        scene = _geometry(doc, path, order, features, materials, textures)
+        scene = _geometry(doc, path, order, features, notes, materials, textures)
     except BaseException:
         textures.cancel()
         raise
     _lights(doc, order, scene)
-    _warn_features(doc, features)
+    _warn_features(doc, features, notes)
     return scene
 
 
-def _geometry(doc: Document, path: Path, order: list[int], features: dict, materials: list, textures) -> Scene:
-    """The Scene: mesh nodes' primitives, camera and animation (textures() waited for last)."""
+def _geometry(doc: Document, path: Path, order: list[int], features: dict, notes: dict, materials: list,
+              textures) -> Scene:
+    """The Scene: mesh nodes' primitives, camera, animation and deformation (textures() waited for last)."""
     animation = gltf_animation.from_document(doc, order, features)   # None: static
+    skins = read_skins(doc)
+    deformers: list = []        # skinned / morphed pieces: posed below, then on the device per frame
 
     geometry = geometry_for(doc, order)
     nodes_json, meshes_json = doc.list("nodes"), doc.list("meshes")
@@ -340,12 +349,45 @@ def _geometry(doc: Document, path: Path, order: list[int], features: dict, mater
             # a normal map without TANGENT: generated (clrender.tangents) from the set the map reads
             material = materials[mat]
             tangent_uv = material.normal_uv.texcoord if material.normal_texture >= 0 and tangents is None else None
+            skinned = "skin" in node
+            if not skinned and any(a.startswith(("JOINTS_", "WEIGHTS_")) for a in attrs):
+                features.setdefault("JOINTS/WEIGHTS on a node without a skin", f"drawn unskinned (first: {what})")
+            if skinned or prim.get("targets"):
+                if skinned:
+                    doc.get("skins", node["skin"], f"node {n} skin")
+                elif np.linalg.det(matrix[:3, :3]) < 0:     # a mirroring node transform: the winding flips
+                    faces = faces[:, [0, 2, 1]]
+                if normals is None:         # bind-space area-weighted normals, then posed like the file's
+                    normals = vertex_normals(positions, faces)
+                if tangent_uv is not None:  # bind-space tangents, then posed
+                    uv_set = uvs if tangent_uv == 0 else (extra_uvs[tangent_uv - 1] if extra_uvs and tangent_uv
+                                                          <= len(extra_uvs) else None)
+                    if uv_set is None:
+                        raise doc.err(f"{what}: no TEXCOORD_{tangent_uv} to generate tangents from")
+                    tangents, tangent_uv = generate_tangents(positions, normals, uv_set, faces), None
+                deformers.append(deformer(doc, what, name, len(pieces), n, node, mesh, prim, positions, normals,
+                                          tangents, skins, notes))
+                pieces.append(Piece(name, positions, faces, mat, normals, uvs, colors, tangents, extra_uvs))
+                continue
             if animation is not None:   # remember the mesh's node; a singular rest matrix builds it unposed
                 matrix = animation.add_mesh(len(pieces), n, matrix)
             pieces.append(world_piece(name, matrix, positions, faces, mat, normals, uvs, colors, tangents,
                                       extra_uvs, tangent_uv))
 
+    deformation = None
+    if deformers:               # the load pose (rest transforms, default weights) into the pieces
+        deformation = Deformation(deformers, skins, animation or gltf_animation.rig(doc, order), str(path))
+        deformation.rest()
+        for i, d in enumerate(deformers):
+            p, nrm, tan = deformation.posed(i)
+            old = pieces[d.mesh]
+            pieces[d.mesh] = Piece(old.name, p, old.faces, old.material, nrm, old.uvs, old.colors, tan,
+                                   old.extra_uvs)
     scene = assemble(pieces, materials, textures, str(path))
+    if deformation is not None:
+        firsts = np.cumsum([0] + [len(p.positions) for p in pieces])
+        deformation.attach({d.mesh: firsts[d.mesh] for d in deformers})
+        scene.deformation = deformation
     scene.camera = _camera(doc, order, geometry, scene)
     if animation is not None:
         gltf_animation.bind(animation, doc, order, scene)

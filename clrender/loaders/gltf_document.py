@@ -10,6 +10,8 @@ exists on the primitives using the material, and extensionsRequired (only
 `SUPPORTED_EXTENSIONS` are accepted). Bad input
 is a `SceneError` naming the file and the offending element, never a KeyError or a trimesh
 traceback. `Document.accessor(i)` then decodes an accessor (strided, sparse, normalized) to NumPy.
+Compressed data (KHR_draco_mesh_compression, EXT_meshopt_compression) decodes behind
+`Document.accessor` and `Document.view_bytes` (`gltf_compression`, docs/compression.md).
 """
 from __future__ import annotations
 
@@ -24,6 +26,7 @@ from urllib.parse import unquote
 import numpy as np
 
 from ..scene import SceneError
+from . import gltf_compression as compression
 from .common import fail
 
 COMPONENT_TYPES = {5120: "<i1", 5121: "<u1", 5122: "<i2", 5123: "<u2", 5125: "<u4", 5126: "<f4"}
@@ -32,15 +35,17 @@ WRAP_MODES = {10497: "repeat", 33071: "clamp", 33648: "mirror"}
 MODE_TRIANGLES, MODE_STRIP, MODE_FAN = 4, 5, 6
 # The extensions clrender implements. A file that lists any other in extensionsRequired is refused
 # (SceneError naming it); other extensions it merely uses are ignored with one warning each
-# (clrender.loaders.gltf). EXT_texture_webp: `texture_source` reads its image (Pillow decodes WebP).
+# (clrender.loaders.gltf). EXT_texture_webp: `texture_source` reads its image (Pillow decodes WebP);
+# KHR_mesh_quantization, KHR_draco_mesh_compression, EXT_meshopt_compression: `gltf_compression`.
 SUPPORTED_EXTENSIONS = frozenset({"KHR_materials_emissive_strength", "KHR_materials_unlit", "KHR_texture_transform",
-                                  "KHR_lights_punctual", "EXT_texture_webp"})
+                                  "KHR_lights_punctual", "EXT_texture_webp"}) | compression.EXTENSIONS
 # Vertex attribute component types (glTF 2.0, "Meshes"): (componentType, normalized)
 FLOAT = {(5126, False)}
 UNORM_8_16 = {(5121, True), (5123, True)}
 SNORM_8_16 = {(5120, True), (5122, True)}
 COMPONENT_NAMES = {5120: "BYTE", 5121: "UNSIGNED_BYTE", 5122: "SHORT", 5123: "UNSIGNED_SHORT",
                    5125: "UNSIGNED_INT", 5126: "FLOAT"}
+INTS_8_16 = {(c, n) for c in (5120, 5121, 5122, 5123) for n in (False, True)}
 # attribute -> (allowed types, allowed (componentType, normalized)); TANGENT allows the snorm forms of
 # KHR_mesh_quantization, which Document.accessor decodes like any normalized accessor
 ATTRIBUTE_FORMATS = {
@@ -49,6 +54,11 @@ ATTRIBUTE_FORMATS = {
     "COLOR": (("VEC3", "VEC4"), FLOAT | UNORM_8_16),
     "TANGENT": (("VEC4",), FLOAT | SNORM_8_16),
 }
+# KHR_mesh_quantization's table, where it widens the core formats (NORMAL, TANGENT: already allowed)
+QUANTIZED_FORMATS = {"POSITION": (("VEC3",), FLOAT | INTS_8_16), "TEXCOORD": (("VEC2",), FLOAT | INTS_8_16)}
+# vertex attributes whose integer data are values (dequantized to float32 by Document.accessor);
+# JOINTS_n and the indices stay integers
+FLOAT_ATTRIBUTES = ("POSITION", "NORMAL", "TANGENT", "TEXCOORD", "COLOR")
 # material texture slots: (clrender slot, JSON path of its textureInfo, sRGB image)
 TEXTURE_INFOS = (("base_color", ("pbrMetallicRoughness", "baseColorTexture"), True),
                  ("metallic_roughness", ("pbrMetallicRoughness", "metallicRoughnessTexture"), False),
@@ -68,6 +78,13 @@ class Document:
         self.buffers: list[bytes] = []
         self.glb_bin: Optional[bytes] = None
         self._accessor_cache: dict[int, np.ndarray] = {}
+        self.float_accessors: set[int] = set()     # FLOAT_ATTRIBUTES accessors (filled by validate)
+        # compressed data (gltf_compression): accessor -> (primitive label, primitive) of its Draco data;
+        # EXT_meshopt_compression bufferViews, their decoded bytes; buffers without data (meshopt fallback)
+        self.draco_accessors: dict[int, tuple] = {}
+        self.meshopt_views: set[int] = set()
+        self._view_cache: dict[int, memoryview] = {}
+        self.placeholder_buffers: set[int] = set()
 
     def err(self, message: str) -> SceneError:
         return fail(self.path, message)
@@ -90,6 +107,10 @@ class Document:
 
     # -- buffers ------------------------------------------------------------------------------
     def view_bytes(self, index: int) -> memoryview:
+        if index in self.meshopt_views:
+            data = compression.meshopt_view(self, index)    # None: no decoder, the fallback data is there
+            if data is not None:
+                return data
         view = self.json["bufferViews"][index]
         start = view.get("byteOffset", 0)
         return memoryview(self.buffers[view["buffer"]])[start:start + view["byteLength"]]
@@ -98,6 +119,10 @@ class Document:
         """(count, components) array; normalized integers become float32 per the spec."""
         if index in self._accessor_cache:
             return self._accessor_cache[index]
+        if index in self.draco_accessors:
+            arr = compression.draco_accessor(self, index)   # None: no decoder, the fallback data is there
+            if arr is not None:
+                return arr
         acc = self.json["accessors"][index]
         dtype = np.dtype(COMPONENT_TYPES[acc["componentType"]])
         ncomp = TYPE_SIZES[acc["type"]]
@@ -120,11 +145,20 @@ class Document:
             if n and idx.max() >= count:
                 raise self.err(f"accessor {index}: sparse index {int(idx.max())} out of range ({count})")
             arr[idx.astype(np.int64)] = vals
-        if acc.get("normalized") and dtype.kind in "iu":
-            info = np.iinfo(dtype)
+        return self.store_accessor(index, arr)
+
+    def store_accessor(self, index: int, arr: np.ndarray) -> np.ndarray:
+        """Cache accessor `index`'s raw data `arr` (its componentType) as `accessor` returns it:
+        normalized integers to float32 per the spec, integer vertex attributes to float32
+        (KHR_mesh_quantization's non-normalized forms are plain values), read-only."""
+        acc = self.json["accessors"][index]
+        if acc.get("normalized") and arr.dtype.kind in "iu":
+            info = np.iinfo(arr.dtype)
             arr = arr.astype(np.float32) / np.float32(info.max)
-            if dtype.kind == "i":
+            if info.min < 0:
                 arr = np.maximum(arr, np.float32(-1.0))
+        elif index in self.float_accessors and arr.dtype.kind in "iu":
+            arr = arr.astype(np.float32)
         arr.setflags(write=False)
         self._accessor_cache[index] = arr
         return arr
@@ -226,6 +260,7 @@ def _validate_inner(doc: Document) -> None:
     required = j.get("extensionsRequired", []) or []
     if not isinstance(required, list) or not all(isinstance(e, str) for e in required):
         raise doc.err("extensionsRequired must be an array of extension names")
+    compression.check_required(doc, required)
     bad = sorted(set(required) - SUPPORTED_EXTENSIONS)
     if bad:
         raise doc.err(f"requires unsupported glTF extension(s) {', '.join(bad)} (extensionsRequired; "
@@ -238,6 +273,9 @@ def _validate_inner(doc: Document) -> None:
         if uri is None:
             if k == 0 and doc.glb_bin is not None:
                 data = doc.glb_bin
+            elif compression.placeholder_buffer(doc, k, buf):    # only meshopt bufferViews read it
+                doc.placeholder_buffers.add(k)
+                data = b""
             else:
                 raise doc.err(f"buffer {k} has no uri (and there is no GLB binary chunk for it)")
         elif uri.startswith("data:"):
@@ -247,7 +285,7 @@ def _validate_inner(doc: Document) -> None:
             if not file.is_file():
                 raise doc.err(f"buffer {k}: file not found: {file}")
             data = file.read_bytes()
-        if len(data) < length:
+        if len(data) < length and k not in doc.placeholder_buffers:
             raise doc.err(f"buffer {k} ({uri or 'GLB chunk'}) has {len(data)} bytes, "
                           f"but its byteLength is {length}")
         doc.buffers.append(data[:length] if len(data) > length else data)
@@ -258,11 +296,13 @@ def _validate_inner(doc: Document) -> None:
         doc.get("buffers", b, f"bufferViews[{v}]")
         off = _int(view.get("byteOffset", 0), f"bufferViews[{v}].byteOffset", doc)
         length = _int(view.get("byteLength"), f"bufferViews[{v}].byteLength", doc)
-        if off + length > len(doc.buffers[b]):
+        size = doc.list("buffers")[b]["byteLength"] if b in doc.placeholder_buffers else len(doc.buffers[b])
+        if off + length > size:
             raise doc.err(f"bufferView {v} (bytes {off}..{off + length}) runs past the end of buffer {b} "
-                          f"({len(doc.buffers[b])} bytes)")
+                          f"({size} bytes)")
         if "byteStride" in view:
             _int(view["byteStride"], f"bufferViews[{v}].byteStride", doc, 1)
+        compression.validate_view(doc, v, view)
 
     # accessors
     for a, acc in enumerate(doc.list("accessors")):
@@ -291,6 +331,8 @@ def _validate_inner(doc: Document) -> None:
                              info.get("byteOffset", 0), size, size, n)
 
     accessors = doc.list("accessors")
+    quantized = compression.QUANTIZATION in (doc.json.get("extensionsUsed") or [])
+    formats = {**ATTRIBUTE_FORMATS, **QUANTIZED_FORMATS} if quantized else ATTRIBUTE_FORMATS
 
     def accessor_ref(index, what):
         return doc.get("accessors", index, what)
@@ -307,6 +349,9 @@ def _validate_inner(doc: Document) -> None:
                 raise doc.err(f"{what} has no attributes")
             for name, idx in attrs.items():
                 accessor_ref(idx, f"{what} attribute {name}")
+                if attribute_kind(name) in FLOAT_ATTRIBUTES:
+                    doc.float_accessors.add(idx)
+            compression.validate_primitive(doc, what, prim)
             mode = prim.get("mode", MODE_TRIANGLES)
             if mode not in range(7):
                 raise doc.err(f"{what}: unknown mode {mode!r}")
@@ -322,16 +367,18 @@ def _validate_inner(doc: Document) -> None:
             nv = pos["count"]
             for name, idx in attrs.items():
                 kind = attribute_kind(name)
-                if kind not in ATTRIBUTE_FORMATS:
+                if kind not in formats:
                     continue
-                acc, (types, formats) = accessors[idx], ATTRIBUTE_FORMATS[kind]
+                acc, (types, allowed_formats) = accessors[idx], formats[kind]
                 fmt = (acc["componentType"], bool(acc.get("normalized", False)))
-                if acc["type"] not in types or (formats is not None and fmt not in formats):
+                if acc["type"] not in types or (allowed_formats is not None and fmt not in allowed_formats):
                     allowed = " or ".join(sorted({("normalized " if n else "") + COMPONENT_NAMES[c]
-                                                  for c, n in (formats or ())}))
+                                                  for c, n in (allowed_formats or ())}))
                     got = ("normalized " if fmt[1] else "") + COMPONENT_NAMES[fmt[0]]
                     raise doc.err(f"{what}: attribute {name} (accessor {idx}) must be {' or '.join(types)}"
-                                  + (f" of {allowed}" if formats else "") + f", got {acc['type']} of {got}")
+                                  + (f" of {allowed}" if allowed_formats else "") + f", got {acc['type']} of {got}"
+                                  + (f" (needs {compression.QUANTIZATION} in extensionsUsed)"
+                                     if not quantized and kind in QUANTIZED_FORMATS and fmt in INTS_8_16 else ""))
                 if acc["count"] != nv:
                     raise doc.err(f"{what}: {name} has {acc['count']} entries but POSITION has {nv}")
             if "material" in prim:
@@ -386,7 +433,7 @@ def _validate_inner(doc: Document) -> None:
             for key in ("wrapS", "wrapT"):
                 if key in sampler and sampler[key] not in WRAP_MODES:
                     raise doc.err(f"sampler {tex['sampler']}: unknown {key} {sampler[key]!r}")
-        src = texture_source(tex)
+        src = texture_source(tex, doc, f"texture {t}")
         if src is not None:
             doc.get("images", src, f"texture {t}")
     for i, img in enumerate(doc.list("images")):
@@ -584,11 +631,8 @@ def data_uri(doc: Document, uri: str, what: str) -> bytes:
         raise doc.err(f"{what}: bad data URI ({exc})") from None
 
 
-def texture_source(tex: dict):
-    """A texture's image index: `source`, else an extension's (e.g. EXT_texture_webp), else None."""
-    if "source" in tex:
-        return tex["source"]
-    for ext in (tex.get("extensions") or {}).values():  # e.g. EXT_texture_webp
-        if isinstance(ext, dict) and "source" in ext:
-            return ext["source"]
-    return None
+def texture_source(tex: dict, doc: Optional[Document] = None, what: str = "texture"):
+    """A texture's image index: an image extension's source (EXT_texture_webp) when its decoder is
+    available, else `source`, else None (with `doc`: SceneError when only undecodable extension
+    images are given, e.g. KHR_texture_basisu); see gltf_compression.texture_source."""
+    return compression.texture_source(tex, doc, what)

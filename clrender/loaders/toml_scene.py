@@ -132,6 +132,8 @@ are a SceneError naming the file and the key.
 """
 from __future__ import annotations
 
+import warnings
+
 import fnmatch
 import math
 import tomllib
@@ -558,6 +560,10 @@ def _concatenate(parts: list[tuple[str, Scene]], source: str) -> Scene:
     lights, auto, directional = [], [], []
     v_off = l_off = 0
     for label, s in parts:
+        if s.deformation is not None or s.animation is not None:
+            warnings.warn(f"{source}: mesh {label!r}: its animations, skins and morph targets are not carried into a "
+                          f"TOML scene: drawn at its load pose (render the glTF file itself to animate it)",
+                          stacklevel=4)
         auto.extend(int(i) + l_off for i in s.settings.get(AUTO_RADIUS_KEY, []))
         lights.append(s.lights)
         l_off += len(s.lights)
