@@ -4,6 +4,8 @@ from pathlib import Path
 
 import pytest
 
+import numpy as np
+
 from clrender import load_scene
 from clrender.scene import SceneError
 
@@ -69,3 +71,12 @@ def shared_file(rel: str) -> Path:
     if not path.is_file():
         pytest.skip(f"shared test scene {path} is not available (needs ../shared/scenes next to the repo)")
     return path
+
+
+def pixel_far_points(camera, width: int, height: int) -> np.ndarray:
+    """(H, W, 3) float64: each pixel centre's point on the far plane (its ray from the eye)."""
+    inv = np.linalg.inv(camera.view_projection(width, height))
+    ys, xs = np.mgrid[0:height, 0:width] + 0.5
+    ndc = np.stack([xs / width * 2 - 1, 1 - ys / height * 2, np.ones_like(xs), np.ones_like(xs)], -1)
+    far = ndc @ inv.T
+    return far[..., :3] / far[..., 3:]

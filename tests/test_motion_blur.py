@@ -12,6 +12,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from helpers import pixel_far_points
+
 import clrender
 from clrender import Camera, Material, Scene
 from clrender.scene import SceneError
@@ -311,11 +313,7 @@ def test_pass_on_synthetic_velocity_matches_reference(device):
 # -- object motion -----------------------------------------------------------------------------------
 def plane_hits(camera: Camera, z: float) -> np.ndarray:
     """(H, W, 3) float64: where each pixel centre's ray meets the plane z = const."""
-    inv = np.linalg.inv(camera.view_projection(W, H))
-    ys, xs = np.mgrid[0:H, 0:W] + 0.5
-    ndc = np.stack([xs / W * 2 - 1, 1 - ys / H * 2, np.ones_like(xs), np.ones_like(xs)], -1)
-    far = ndc @ inv.T
-    far = far[..., :3] / far[..., 3:]
+    far = pixel_far_points(camera, W, H)
     eye = np.asarray(camera.eye, np.float64)
     t = (z - eye[2]) / (far[..., 2] - eye[2])
     return eye + t[..., None] * (far - eye)

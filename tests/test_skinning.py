@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from gltf_files import write_gltf
-from helpers import shared_file
+from helpers import pixel_far_points, shared_file
 from reference.skinning_reference import GltfReference
 
 from clrender import Camera, Renderer, Scene, load_scene
@@ -278,13 +278,8 @@ def test_posed_depth_equals_numpy_posed_static_mesh(tmp_path, renderer, device):
 
 
 def pixel_rays(camera):
-    inv = np.linalg.inv(camera.view_projection(W, H))
-    ys, xs = np.mgrid[0:H, 0:W] + 0.5
-    ndc = np.stack([xs / W * 2 - 1, 1 - ys / H * 2, np.ones_like(xs), np.ones_like(xs)], -1)
-    far = ndc @ inv.T
-    far = far[..., :3] / far[..., 3:]
     eye = np.asarray(camera.eye, np.float64)
-    d = far - eye
+    d = pixel_far_points(camera, W, H) - eye
     return eye, d / np.linalg.norm(d, axis=-1, keepdims=True)
 
 
