@@ -512,3 +512,21 @@ def test_batch_frames_of_a_skinned_file_equal_direct_renders(tmp_path, device):
         velocity = np.load(tmp_path / "out" / f"worm_{f:04d}.velocity.npy")
         np.testing.assert_array_equal(velocity, frame.velocity)
         assert np.abs(frame.velocity).max() > 0.1
+
+
+def test_mirrored_morph_mesh_without_normals_matches_the_static_mesh(tmp_path, device):
+    """A morph-only quad without NORMAL under a mirroring node (scale -1 in x), weights 0: the same
+    winding flip and the same (generated) normals as the quad without targets, on the host and as
+    the device poses it."""
+    from gltf_files import QUAD_POSITIONS, primitive
+    node = [{"mesh": 0, "scale": [-1.0, 1.0, 1.0], "translation": [0.5, 0.0, 0.0]}]
+    static = load_scene(write_gltf(tmp_path / "s.gltf", [primitive(normals=None)], nodes=node))
+    morph = load_scene(write_gltf(tmp_path / "m.gltf", [primitive(normals=None, targets=[
+        {"POSITION": np.full_like(QUAD_POSITIONS, 0.5)}])], nodes=node))
+    assert morph.deformation is not None and static.deformation is None
+    np.testing.assert_array_equal(morph.triangles, static.triangles)
+    np.testing.assert_allclose(morph.positions, static.positions, atol=1e-7)
+    np.testing.assert_allclose(morph.normals, static.normals, atol=1e-7)
+    posed = Renderer(W, H, device=device).posed_vertices(morph)
+    np.testing.assert_allclose(posed["normals"], static.normals, atol=1e-6)
+    np.testing.assert_allclose(posed["positions"], static.positions, atol=1e-6)

@@ -353,12 +353,12 @@ def _geometry(doc: Document, path: Path, order: list[int], features: dict, notes
             if not skinned and any(a.startswith(("JOINTS_", "WEIGHTS_")) for a in attrs):
                 features.setdefault("JOINTS/WEIGHTS on a node without a skin", f"drawn unskinned (first: {what})")
             if skinned or prim.get("targets"):
+                if normals is None:         # bind-space area-weighted normals, then posed like the file's
+                    normals = vertex_normals(positions, faces)
                 if skinned:
                     doc.get("skins", node["skin"], f"node {n} skin")
                 elif np.linalg.det(matrix[:3, :3]) < 0:     # a mirroring node transform: the winding flips
                     faces = faces[:, [0, 2, 1]]
-                if normals is None:         # bind-space area-weighted normals, then posed like the file's
-                    normals = vertex_normals(positions, faces)
                 if tangent_uv is not None:  # bind-space tangents, then posed
                     uv_set = uvs if tangent_uv == 0 else (extra_uvs[tangent_uv - 1] if extra_uvs and tangent_uv
                                                           <= len(extra_uvs) else None)

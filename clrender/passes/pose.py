@@ -172,6 +172,10 @@ class PosePass(RenderPass):
         and bounds of the current pose."""
         d = res["deformation"]
         n_vertices = int(res["n_vertices"])
+        end = max((x.first + x.count for x in d.deformers), default=0)
+        if end > n_vertices:       # arrays replaced by hand: the kernel would write past the buffers
+            from ..errors import SceneError
+            raise SceneError(f"{d.source}: the deformed meshes use vertices up to {end}, the scene has {n_vertices}")
         upload_prev = res.buffers.get("prev_positions")
         wants_prev = d.previous_palette is not None or upload_prev is not None
         done = self._done
