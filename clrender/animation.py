@@ -81,6 +81,22 @@ def trs_matrix(translation=(0.0, 0.0, 0.0), rotation=(0.0, 0.0, 0.0, 1.0), scale
     return m
 
 
+def trs_matrices(translation: np.ndarray, rotation: np.ndarray, scale: np.ndarray) -> np.ndarray:
+    """(N, 4, 4) T . R . S of N nodes, as trs_matrix (quaternions normalized; zero: identity)."""
+    q = np.asarray(rotation, np.float64)
+    norm = np.sqrt((q * q).sum(1))
+    q = np.where(norm[:, None] > 0, q / np.where(norm > 0, norm, 1.0)[:, None], [0.0, 0.0, 0.0, 1.0])
+    x, y, z, w = q.T
+    r = np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w),
+                  2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w),
+                  2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)], 1).reshape(-1, 3, 3)
+    m = np.zeros((len(q), 4, 4))
+    m[:, :3, :3] = r * np.asarray(scale, np.float64)[:, None, :]
+    m[:, :3, 3] = translation
+    m[:, 3, 3] = 1.0
+    return m
+
+
 def slerp(q0, q1, t: float) -> np.ndarray:
     """The glTF spec's slerp (Appendix C): shortest path between unit quaternions q0 and q1.
     a = acos(|q0.q1|), s = sign(q0.q1); (sin(a(1-t)) q0 + s sin(at) q1) / sin(a); nearly equal
@@ -189,8 +205,12 @@ class Animation:
             if key not in sampled:
                 sampled[key] = c.sampler.sample(float(t), rotation=c.path == "rotation")
             trs.setdefault(c.node, dict(self.rest[c.node]))[c.path] = sampled[key]
-        for n, r in trs.items():
-            out[n] = _local(r)
+        if trs:                      # the animated nodes' T . R . S at once (thousands in a crowd)
+            nodes = list(trs)
+            matrices = trs_matrices(np.array([trs[n].get("translation", (0.0, 0.0, 0.0)) for n in nodes], np.float64),
+                                    np.array([trs[n].get("rotation", (0.0, 0.0, 0.0, 1.0)) for n in nodes], np.float64),
+                                    np.array([trs[n].get("scale", (1.0, 1.0, 1.0)) for n in nodes], np.float64))
+            out.update(zip(nodes, matrices))
         return out
 
     def world_matrices(self, t: float, rest: bool = False) -> dict:

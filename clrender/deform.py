@@ -202,47 +202,50 @@ class Deformation:
 
     # -- conservative bounds -----------------------------------------------------------------------
     def _influence_boxes(self):
-        """Per deformer: (palette slots (B,), lo (B, 3), hi (B, 3), morph lo/hi (T, B, 3)) of the
-        vertices each slot moves (weight > 0)."""
+        """The boxes of every (deformer, palette slot) pair, stacked: (slots (B,), lo (B, 3), hi (B, 3),
+        morphs [(first box, count, deformer index, morph lo (T, b, 3), morph hi (T, b, 3))]): the box of
+        the bind vertices each slot moves (weight > 0), and of their position deltas per target."""
         if self._boxes is None:
-            boxes = []
+            keys, los, his, morphs, b0 = [], [], [], [], 0
             for i, d in enumerate(self.deformers):
                 slots = self.palette_index(i)
                 used = d.weights > 0
-                keys = np.unique(slots[used])
-                lo = np.full((len(keys), 3), np.inf)
-                hi = np.full((len(keys), 3), -np.inf)
+                k = np.unique(slots[used])
+                lo, hi = np.full((len(k), 3), np.inf), np.full((len(k), 3), -np.inf)
                 t = d.targets if d.target_positions is not None else 0
-                mlo, mhi = np.zeros((t, len(keys), 3)), np.zeros((t, len(keys), 3))
-                for b, key in enumerate(keys):
+                mlo, mhi = np.zeros((t, len(k), 3)), np.zeros((t, len(k), 3))
+                for b, key in enumerate(k):
                     v = np.flatnonzero((used & (slots == key)).any(1))
                     lo[b], hi[b] = d.positions[v].min(0), d.positions[v].max(0)
                     if t:
                         mlo[:, b], mhi[:, b] = d.target_positions[:, v].min(1), d.target_positions[:, v].max(1)
-                boxes.append((keys, lo, hi, mlo, mhi))
-            self._boxes = boxes
+                if t:
+                    morphs.append((b0, len(k), i, mlo, mhi))
+                keys.append(k)
+                los.append(lo)
+                his.append(hi)
+                b0 += len(k)
+            cat = (lambda xs, shape: np.concatenate(xs) if xs else np.zeros(shape))   # noqa: E731
+            self._boxes = (cat(keys, (0,)).astype(np.int64), cat(los, (0, 3)), cat(his, (0, 3)), morphs)
         return self._boxes
 
     def bounds(self, palette: Optional[np.ndarray] = None, weights: Optional[np.ndarray] = None) -> np.ndarray:
         """(2, 3) float64 box containing every posed deformed vertex (module doc)."""
         palette = self.palette if palette is None else palette
         weights = self.morph_weights if weights is None else weights
-        lo_all, hi_all = np.full(3, np.inf), np.full(3, -np.inf)
+        keys, lo, hi, morphs = self._influence_boxes()
+        if not len(keys):
+            return np.stack([np.full(3, np.inf), np.full(3, -np.inf)])
+        lo, hi = lo.copy(), hi.copy()
+        for b0, count, i, mlo, mhi in morphs:           # the deltas as intervals scaled by the weights
+            w = np.asarray(weights[self.weight_offsets[i]:self.weight_offsets[i + 1]], np.float64)[:, None, None]
+            lo[b0:b0 + count] += np.minimum(w * mlo, w * mhi).sum(0)
+            hi[b0:b0 + count] += np.maximum(w * mlo, w * mhi).sum(0)
         corners = np.array([[x, y, z] for x in (0, 1) for y in (0, 1) for z in (0, 1)], np.float64)
-        for i, (keys, lo, hi, mlo, mhi) in enumerate(self._influence_boxes()):
-            if not len(keys):
-                continue
-            w = np.asarray(weights[self.weight_offsets[i]:self.weight_offsets[i + 1]], np.float64)[: len(mlo)]
-            if len(mlo):
-                a, b = w[:, None, None] * mlo, w[:, None, None] * mhi
-                lo = lo + np.minimum(a, b).sum(0)
-                hi = hi + np.maximum(a, b).sum(0)
-            pts = lo[:, None, :] + corners[None] * (hi - lo)[:, None, :]          # (B, 8, 3)
-            m = palette[keys]                                                   # (B, 3, 4)
-            world = np.einsum("bij,bcj->bci", m[:, :, :3], pts) + m[:, None, :, 3]
-            lo_all = np.minimum(lo_all, world.reshape(-1, 3).min(0))
-            hi_all = np.maximum(hi_all, world.reshape(-1, 3).max(0))
-        return np.stack([lo_all, hi_all])
+        pts = lo[:, None, :] + corners[None] * (hi - lo)[:, None, :]              # (B, 8, 3)
+        m = palette[keys]                                                        # (B, 3, 4)
+        world = (np.einsum("bij,bcj->bci", m[:, :, :3], pts) + m[:, None, :, 3]).reshape(-1, 3)
+        return np.stack([world.min(0), world.max(0)])
 
 
 def normalize_weights(weights: np.ndarray, what: str) -> tuple[np.ndarray, bool]:

@@ -188,6 +188,8 @@ def posed_close(scene, ref, node, t, renderer, atol_p=3e-5, atol_n=3e-5):
     p, n, tg = ref.pose(node, 0, t)
     scale = max(1.0, float(np.abs(p).max()))
     np.testing.assert_allclose(got["positions"][sl], p, atol=atol_p * scale, rtol=0)
+    lo, hi = scene.deformation.bounds()              # conservative: the sun's shadow fit relies on it
+    assert (p >= lo - 1e-9 * scale).all() and (p <= hi + 1e-9 * scale).all()
     if n is not None:               # without NORMAL: bind-space generated normals, posed (no reference)
         np.testing.assert_allclose(got["normals"][sl], n, atol=atol_n, rtol=0)
     if tg is not None:
