@@ -235,7 +235,11 @@ def exr_path(image) -> Path:
     return Path(image).with_suffix(".exr")
 
 
-def aov_paths(image: Path, aovs: Sequence[str], exr: bool) -> list[Path]:
+def sheet_path(image) -> Path:
+    return Path(image).with_suffix(".sheet.png")
+
+
+def aov_paths(image: Path, aovs: Sequence[str], exr: bool, sheet: bool = False) -> list[Path]:
     """Every file `write_outputs` writes for `aovs` next to `image` (not `image` itself)."""
     stem = Path(image).with_suffix("")
     paths = []
@@ -243,6 +247,8 @@ def aov_paths(image: Path, aovs: Sequence[str], exr: bool) -> list[Path]:
         paths += [Path(f"{stem}.{aov}.npy"), Path(f"{stem}.{aov}.png")]
     if exr:
         paths.append(exr_path(image))
+    if sheet:
+        paths.append(sheet_path(image))
     return paths
 
 
@@ -336,14 +342,42 @@ def preview(name: str, data: np.ndarray, background: np.ndarray) -> np.ndarray:
     raise ValueError(f"no preview for AOV {name!r}")
 
 
-def write_outputs(frame, image: Path, aovs: Sequence[str], bit_depth: int = 8, exr: bool = False) -> None:
+LABEL_HEIGHT = 14          # pixels of the name strip above each contact-sheet tile
+
+
+def contact_sheet(tiles: Sequence[tuple], columns: int = 4) -> np.ndarray:
+    """(rows·(H + LABEL_HEIGHT), columns·W, 3) uint8: (name, (H, W, 3) uint8 picture) tiles of one
+    size, row by row, each under a dark strip with its name (Pillow's default font)."""
+    from PIL import Image, ImageDraw
+
+    if not tiles:
+        raise ValueError("a contact sheet needs at least one picture")
+    h, w = tiles[0][1].shape[:2]
+    if any(t.shape[:2] != (h, w) for _, t in tiles):
+        raise ValueError("contact sheet pictures must all have the same size")
+    columns = max(1, min(int(columns), len(tiles)))
+    rows = -(-len(tiles) // columns)
+    sheet = Image.new("RGB", (columns * w, rows * (h + LABEL_HEIGHT)), (24, 24, 24))
+    draw = ImageDraw.Draw(sheet)
+    for k, (name, picture) in enumerate(tiles):
+        x, y = (k % columns) * w, (k // columns) * (h + LABEL_HEIGHT)
+        sheet.paste(Image.fromarray(np.ascontiguousarray(picture[..., :3], np.uint8)), (x, y + LABEL_HEIGHT))
+        draw.text((x + 3, y + 1), str(name), fill=(235, 235, 235))
+    return np.asarray(sheet)
+
+
+def write_outputs(frame, image: Path, aovs: Sequence[str], bit_depth: int = 8, exr: bool = False,
+                  sheet: bool = False) -> None:
     """Write the display image of `frame` to `image` (creating its folder; `bit_depth` 8 or 16),
-    then `write_aovs` beside it, and with `exr` the multi-layer <stem>.exr (`write_exr`)."""
+    then `write_aovs` beside it, with `exr` the multi-layer <stem>.exr (`write_exr`) and with
+    `sheet` <stem>.sheet.png: the image and the previews of `aovs`, labelled (`contact_sheet`)."""
     image = Path(image)
     write_image(frame, image, bit_depth)
     write_aovs(frame, image, aovs)
     if exr:
         write_exr(exr_path(image), frame, aovs)
+    if sheet:
+        _imwrite(str(sheet_path(image)), frame.contact_sheet(["image", *aovs]))
 
 
 def write_aovs(frame, image: Path, aovs: Sequence[str]) -> None:

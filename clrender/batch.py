@@ -53,6 +53,7 @@ class Outputs:
     aovs: tuple = ()
     bit_depth: int = 8
     exr: bool = False
+    sheet: bool = False          # <stem>.sheet.png: the image and the AOV previews, labelled
 
 
 @dataclass(frozen=True)
@@ -79,7 +80,7 @@ class FrameTask:
     device: Optional[str] = None
 
     def paths(self) -> list[Path]:
-        return [Path(self.image), *aov_paths(Path(self.image), self.outputs.aovs, self.outputs.exr)]
+        return [Path(self.image), *aov_paths(Path(self.image), self.outputs.aovs, self.outputs.exr, self.outputs.sheet)]
 
 
 @dataclass(frozen=True)
@@ -170,7 +171,7 @@ def render_task(task: FrameTask) -> dict:
     frame = renderer.render(scene, camera, previous_camera=previous, time=task.time)
     render_ms = (_time.perf_counter() - render_start) * 1e3
     write_outputs(frame, Path(task.image), task.outputs.aovs, bit_depth=task.outputs.bit_depth,
-                  exr=task.outputs.exr)
+                  exr=task.outputs.exr, sheet=task.outputs.sheet)
     return {"status": "ok", "time": task.time, "outputs": [str(p) for p in task.paths()],
             "device": frame.stats.get("device"), "worker": f"{socket.gethostname()}:{os.getpid()}",
             "size": [width, height], "render_ms": render_ms,

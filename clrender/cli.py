@@ -181,7 +181,7 @@ def _plan_outputs(scenes: list[str], out: str) -> list[Path]:
 
 
 def _check_distinct(scenes: list[str], images: list[Path], aovs: Sequence[str], exr: bool,
-                    video: Optional[str] = None) -> None:
+                    video: Optional[str] = None, sheet: bool = False) -> None:
     """Refuse to write any file twice in one run, or over an input scene."""
     owner: dict[str, str] = {}
     inputs = {os.path.realpath(s): s for s in scenes}
@@ -190,7 +190,7 @@ def _check_distinct(scenes: list[str], images: list[Path], aovs: Sequence[str], 
         if os.path.realpath(video) in inputs:
             raise CLIError(f"--video {video} would overwrite the input scene {video}")
     for scene, image in zip(scenes, images):
-        for p in [image, *aov_paths(image, aovs, exr)]:
+        for p in [image, *aov_paths(image, aovs, exr, sheet)]:
             key = os.path.realpath(p)
             if key in inputs:
                 raise CLIError(f"output {p} would overwrite the input scene {inputs[key]}")
@@ -288,7 +288,7 @@ def cmd_render(args) -> int:
             raise CLIError(f"--fps: expected a positive number, got {fps!r}")
     elif getattr(args, "fps", None) is not None:
         _note(args, f"{PROG}: note: --fps has no effect on a still without --video")
-    _check_distinct(scenes, images, args.aov, exr, video)
+    _check_distinct(scenes, images, args.aov, exr, video, args.aov_sheet)
     environment = environment_option(args)
     written: list[Path] = []
     # The device (its probe, on a first run) and the kernels of the flags' configuration get ready
@@ -318,7 +318,7 @@ def cmd_render(args) -> int:
             start = time.perf_counter()
             frame = renderer.render(scene, camera, previous_camera=_previous_camera(camera, args), time=args.time)
             wall_ms = (time.perf_counter() - start) * 1e3
-            write_outputs(frame, image, args.aov, bit_depth=bit_depth, exr=exr)
+            write_outputs(frame, image, args.aov, bit_depth=bit_depth, exr=exr, sheet=args.aov_sheet)
             written.append(image)
         except (CLIError, ValueError, OSError) as exc:     # SceneError is a ValueError
             if n == 1 or _debug():

@@ -109,7 +109,8 @@ def cmd_render_frames(args, options: dict) -> int:
         raise CLIError("--fov (perspective) and --ortho (orthographic) exclude each other")
     try:
         tasks, manifest_path = plan_tasks(args.scenes, numbers, args.output, fps, width=args.width,
-                                          height=args.height, outputs=Outputs(tuple(args.aov), args.bit_depth, args.exr),
+                                          height=args.height, outputs=Outputs(tuple(args.aov), args.bit_depth, args.exr,
+                                                          args.aov_sheet),
                                           options=tuple(sorted(options.items())), camera=camera, device=args.device)
     except ValueError as exc:
         raise CLIError(str(exc)) from None

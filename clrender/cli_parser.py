@@ -249,6 +249,9 @@ def build_parser() -> argparse.ArgumentParser:
                         "follows the image aspect)")
     r.add_argument("--bit-depth", type=int, choices=(8, 16), default=8, metavar="{8,16}",
                    help="bits per channel of the image (16: PNG only, from the tone-mapped float colour; default 8)")
+    r.add_argument("--aov-sheet", action="store_true",
+                   help="also write <out-stem>.sheet.png: the image and the previews of every --aov, labelled, "
+                        "on one contact sheet")
     r.add_argument("--exr", action="store_true",
                    help="also write <out-stem>.exr: float32 layers color.RGB and every float --aov (needs OpenEXR)")
     r.add_argument("--video", metavar="FILE.mp4|FILE.gif",

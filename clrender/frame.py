@@ -347,3 +347,29 @@ class Frame:
         if name not in self.AOV_NAMES:
             raise ValueError(f"unknown AOV {name!r}; available: {', '.join(self.AOV_NAMES)}")
         return getattr(self, name)
+
+    def preview(self, name: str = "image") -> np.ndarray:
+        """(H, W, 3) uint8 picture of AOV `name` (or "image", the display image): the same pictures
+        the CLI writes as <stem>.<aov>.png (clrender.aov_io.preview: depth colour-mapped near white
+        to far grey, normals as RGB, ids in hashed colours, counts as a heat map, velocity as a
+        colour wheel)."""
+        if name == "image":
+            return self.image
+        from .aov_io import preview
+        out = preview(name, np.asarray(self.aov(name)), self.triangle_id < 0)
+        return out if out.ndim == 3 else np.repeat(out[..., None], 3, -1)
+
+    def contact_sheet(self, names, columns: int = 4) -> np.ndarray:
+        """One uint8 image of the previews of `names` (AOV names or "image"), `columns` per row,
+        each labelled with its name (clrender.aov_io.contact_sheet)."""
+        from .aov_io import contact_sheet
+        return contact_sheet([(name, self.preview(name)) for name in names], columns)
+
+    def _repr_png_(self) -> bytes:
+        """PNG bytes of the display image: Jupyter and IPython show a Frame as its picture."""
+        import io
+
+        import imageio.v3 as iio
+        buf = io.BytesIO()
+        iio.imwrite(buf, self.image, extension=".png")
+        return buf.getvalue()
