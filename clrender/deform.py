@@ -103,6 +103,7 @@ class Deformation:
         self.palette = self.previous_palette = None
         self.morph_weights = self.previous_morph_weights = None
         self._boxes = None
+        self._bounds = None          # (version, bounds of that pose)
         self._joint_nodes = self._inverse_bind = None     # every skin's joints and matrices, stacked (state)
 
     # -- layout -----------------------------------------------------------------------------------
@@ -230,9 +231,12 @@ class Deformation:
         return self._boxes
 
     def bounds(self, palette: Optional[np.ndarray] = None, weights: Optional[np.ndarray] = None) -> np.ndarray:
-        """(2, 3) float64 box containing every posed deformed vertex (module doc)."""
-        palette = self.palette if palette is None else palette
-        weights = self.morph_weights if weights is None else weights
+        """(2, 3) float64 box containing every posed deformed vertex (module doc); the current
+        pose's is computed once per pose (the pose pass asks every frame)."""
+        if palette is None and weights is None:
+            if self._bounds is None or self._bounds[0] != self.version:
+                self._bounds = (self.version, self.bounds(self.palette, self.morph_weights))
+            return self._bounds[1]
         keys, lo, hi, morphs = self._influence_boxes()
         if not len(keys):
             return np.stack([np.full(3, np.inf), np.full(3, -np.inf)])

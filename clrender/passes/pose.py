@@ -25,12 +25,12 @@ import numpy as np
 import pyopencl as cl
 import pyopencl.array as cla
 
+from ..loaders.common import NO_TANGENT
 from .base import RenderPass, launch_1d
 
 POSE_WG = 64
 DEF_INTS = 8            # pose.cl's deformer record
 DEF_MORPH_POSITION, DEF_MORPH_NORMAL, DEF_MORPH_TANGENT, DEF_RIGID = 1, 2, 4, 16
-NO_TANGENT = (0.0, 0.0, 0.0, 1.0)
 
 
 def device_layout(deformation) -> dict:
@@ -118,6 +118,7 @@ class PosePass(RenderPass):
             layout = device_layout(d)
             static = {name: _put(self.queue, a) for name, a in layout.items()}
             static["n_morph"] = len(layout["morph_vertex"])
+            static["end"] = max((x.first + x.count for x in d.deformers), default=0)   # last scene vertex + 1
             static["ranges"] = _merged_ranges(layout["deformers"][: len(d.deformers)])
             static["last_pose"] = cla.empty(self.queue, max(3 * d.vertex_count, 1), np.float32)   # _kept
             # the skinning kernel's inputs: the bind attributes, morphed in place each frame where a mesh
@@ -172,7 +173,7 @@ class PosePass(RenderPass):
         and bounds of the current pose."""
         d = res["deformation"]
         n_vertices = int(res["n_vertices"])
-        end = max((x.first + x.count for x in d.deformers), default=0)
+        end = self._static[d]["end"]
         if end > n_vertices:       # arrays replaced by hand: the kernel would write past the buffers
             from ..errors import SceneError
             raise SceneError(f"{d.source}: the deformed meshes use vertices up to {end}, the scene has {n_vertices}")
