@@ -35,11 +35,12 @@ from typing import Callable, Sequence
 
 import numpy as np
 
-INT_AOVS = ("triangle_id", "fragment_count", "edges", "shading_model")     # integer AOVs: not in the EXR
+INT_AOVS = ("triangle_id", "object_id", "material_id", "fragment_count", "edges",
+            "shading_model")                                               # integer AOVs: not in the EXR
 BIT_DEPTHS = (8, 16)
 VIDEO_SUFFIXES = (".mp4", ".gif")
 # EXR channel names per AOV (an AOV with one channel is named by itself: "ao", "light_count").
-EXR_CHANNELS = {"color": "RGB", "albedo": "RGB", "emissive": "RGB", "normal": "XYZ", "velocity": "XY",
+EXR_CHANNELS = {"color": "RGB", "albedo": "RGB", "emissive": "RGB", "normal": "XYZ", "position": "XYZ", "velocity": "XY",
                 "depth": "Z", "linear_depth": "Z"}
 
 
@@ -288,6 +289,16 @@ def _preview_ids(ids: np.ndarray) -> np.ndarray:
     return rgb
 
 
+def _preview_position(p: np.ndarray, background: np.ndarray) -> np.ndarray:
+    fg = ~background & np.isfinite(p).all(-1)
+    if not fg.any():
+        return np.zeros(p.shape, np.uint8)
+    lo, hi = p[fg].min(0), p[fg].max(0)
+    out = _u8((np.nan_to_num(p) - lo) / np.maximum(hi - lo, 1e-30))
+    out[~fg] = 0
+    return out
+
+
 def _preview_velocity(vel: np.ndarray) -> np.ndarray:
     """Color wheel: hue = direction, brightness = speed relative to the fastest pixel."""
     v = np.nan_to_num(vel.astype(np.float64), nan=0.0, posinf=0.0, neginf=0.0)
@@ -325,8 +336,10 @@ def preview(name: str, data: np.ndarray, background: np.ndarray) -> np.ndarray:
         return _u8(data)
     if name == "specular_power":
         return _u8(np.log2(np.maximum(data, 1.0)) / SPEC_POWER_LOG2_MAX)
-    if name == "triangle_id":
+    if name in ("triangle_id", "object_id", "material_id"):
         return _preview_ids(data)
+    if name == "position":                 # world x, y, z over the frame's foreground box as R, G, B
+        return _preview_position(data, background)
     if name == "shading_model":            # black background, grey Blinn-Phong, white glTF BRDF
         return np.array([0, 96, 255], np.uint8)[np.clip(data.astype(np.int64) + 1, 0, 2)][..., None].repeat(3, -1)
     if name == "velocity":

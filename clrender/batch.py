@@ -7,7 +7,9 @@
 A job is a list of `FrameTask`s, one per (scene, frame): plain data that pickles, so the same
 `render_task` runs here or on a Dask worker. Frame f shows the scene at t = f / fps, posed with
 `Scene.pose(t, 1 / fps)` (glTF or TOML keyframe animation; the pose at t − 1/fps gives the
-velocity AOV), light particles placed at t.
+velocity AOV), light particles placed at t. A task with a `view` (`clrender dataset`,
+clrender/cli_dataset.py) renders that camera instead, the scene posed at its time without motion,
+and with `Outputs(layout="dataset")` writes the export's folders (clrender/dataset_outputs.py).
 
 Each process (this one, or each Dask worker process) keeps its loaded scenes, keyed by path,
 mtime and size, and one `Renderer` per (device, size, config): programs build and scenes load
@@ -26,6 +28,7 @@ error is recorded as failed, with its message, and the other frames go on.
 from __future__ import annotations
 
 import dataclasses
+import hashlib
 import os
 import socket
 import sys
@@ -37,6 +40,7 @@ from typing import Iterable, Optional, Sequence
 
 from . import frames as _frames
 from .aov_io import aov_paths, write_outputs
+from .camera import Camera
 from .manifest import MANIFEST_NAME, Manifest, manifest_folder
 
 DEFAULT_SIZE = (1280, 720)
@@ -54,6 +58,10 @@ class Outputs:
     bit_depth: int = 8
     exr: bool = False
     sheet: bool = False          # <stem>.sheet.png: the image and the AOV previews, labelled
+    # "stem": <stem>.<aov>.npy/png beside the image; "dataset": the folders of a `clrender dataset`
+    # export (images/, depth/, masks/, aovs/, exr/: clrender.dataset_outputs)
+    layout: str = "stem"
+    depth_scale: float = 1000.0  # dataset layout: depth PNG units per scene unit (mm for metres)
 
 
 @dataclass(frozen=True)
@@ -78,8 +86,13 @@ class FrameTask:
     options: tuple = ()                 # RenderConfig options as sorted (name, value) pairs
     camera: CameraOverride = CameraOverride()
     device: Optional[str] = None
+    view: Optional[Camera] = None       # replaces the scene camera (a dataset view): scene posed at `time`,
+                                        # no motion (no previous camera, no previous pose)
 
     def paths(self) -> list[Path]:
+        if self.outputs.layout == "dataset":
+            from .dataset_outputs import view_paths
+            return view_paths(Path(self.image), self.outputs.aovs, self.outputs.exr)
         return [Path(self.image), *aov_paths(Path(self.image), self.outputs.aovs, self.outputs.exr, self.outputs.sheet)]
 
 
@@ -157,9 +170,9 @@ def render_task(task: FrameTask) -> dict:
     from .camera import with_overrides
     start = _time.perf_counter()
     scene = _scene(task.scene)
-    previous = scene.pose(task.time, task.dt)
-    camera, o = scene.default_camera(), task.camera
-    if o != CameraOverride():                # (scene.bounds() costs ~20 ms on Sponza: only when needed)
+    previous = scene.pose(task.time, None if task.view is not None else task.dt)    # a view: no motion (None)
+    camera, o = task.view or scene.default_camera(), task.camera
+    if task.view is None and o != CameraOverride():   # (scene.bounds() costs ~20 ms on Sponza: only when needed)
         bounds = scene.bounds()
         camera = with_overrides(camera, bounds, o.eye, o.target, o.fov, o.ortho)
         if previous is not None:
@@ -170,8 +183,12 @@ def render_task(task: FrameTask) -> dict:
     render_start = _time.perf_counter()
     frame = renderer.render(scene, camera, previous_camera=previous, time=task.time)
     render_ms = (_time.perf_counter() - render_start) * 1e3
-    write_outputs(frame, Path(task.image), task.outputs.aovs, bit_depth=task.outputs.bit_depth,
-                  exr=task.outputs.exr, sheet=task.outputs.sheet)
+    if task.outputs.layout == "dataset":
+        from .dataset_outputs import write_view
+        write_view(frame, Path(task.image), task.outputs.aovs, task.outputs.exr, task.outputs.depth_scale)
+    else:
+        write_outputs(frame, Path(task.image), task.outputs.aovs, bit_depth=task.outputs.bit_depth,
+                      exr=task.outputs.exr, sheet=task.outputs.sheet)
     return {"status": "ok", "time": task.time, "outputs": [str(p) for p in task.paths()],
             "device": frame.stats.get("device"), "worker": f"{socket.gethostname()}:{os.getpid()}",
             "size": [width, height], "render_ms": render_ms,
@@ -202,9 +219,15 @@ def job_signature(tasks: Sequence[FrameTask], fps: float) -> dict:
     for s in dict.fromkeys(task.scene for task in tasks):
         st = os.stat(s)
         scenes[s] = {"bytes": st.st_size, "mtime_ns": st.st_mtime_ns}
-    return {"scenes": scenes, "fps": fps, "width": t.width, "height": t.height, "options": dict(t.options),
-            "aovs": list(t.outputs.aovs), "bit_depth": t.outputs.bit_depth, "exr": t.outputs.exr,
-            "camera": dataclasses.asdict(t.camera), "device": t.device}
+    job = {"scenes": scenes, "fps": fps, "width": t.width, "height": t.height, "options": dict(t.options),
+           "aovs": list(t.outputs.aovs), "bit_depth": t.outputs.bit_depth, "exr": t.outputs.exr,
+           "camera": dataclasses.asdict(t.camera), "device": t.device}
+    # Only when used, so the signature of a plain frames job (and --resume of older folders) is unchanged.
+    if t.outputs.layout != "stem":
+        job.update(layout=t.outputs.layout, depth_scale=t.outputs.depth_scale)
+    if any(task.view is not None for task in tasks):     # repr of floats is exact: any changed number differs
+        job["views"] = hashlib.sha256(repr([task.view for task in tasks]).encode()).hexdigest()
+    return job
 
 
 def _error_line(error: BaseException) -> str:
@@ -283,6 +306,8 @@ def run_tasks(tasks: Sequence[FrameTask], manifest_path, fps: float = 24.0, clie
     queued = {(t.scene, t.frame) for t in todo}
     skipped = tuple((t.scene, t.frame) for t in tasks if (t.scene, t.frame) not in queued)
     progress = _Progress(len(todo), quiet)
+    for scene, frame in skipped:
+        manifest.mark_skipped(scene, frame, run)
     if skipped:
         progress.write(f"clrender: --resume: {len(skipped)} of {len(tasks)} frames already complete")
     rendered, failed, saved = [], [], -float("inf")

@@ -10,10 +10,22 @@ extent: the half-width is `ymag · width / height`, whatever `xmag` says (`xmag`
 `xmag / ymag` still tells the aspect the author had in mind). The G-buffer stores the same
 linear depth (view depth / far); the rasterizer runs its ORTHO variant (`raster_matrix`,
 docs/raster_contract.md §11).
+
+Intrinsic (pinhole K, `Camera.from_opencv`): a perspective camera whose `intrinsics` hold K
+normalized by the image size, (fx/W, fy/H, cx/W, cy/H), so fx != fy and a principal point
+anywhere (an asymmetric frustum) are honoured, and rendering at another size scales K with it.
+Pixel convention (the raster contract's): pixel (i, j) covers [i, i+1) x [j, j+1) and its centre
+is (i + 0.5, j + 0.5); a world point X lands at (u, v) = K(RX + t) / z in those coordinates,
+as COLMAP and nerfstudio count (OpenCV's calibration puts centres on integers: add 0.5 to its
+cx, cy). Every pass reads the frustum through `half_extents` and `principal_offset`: the ray
+through NDC (x, y) is F + (x - ox)·R·tan_x + (y - oy)·U·tan_y (kernels/lighting.h).
+
+`Frame.depth` is the z-depth along the optical axis (OpenCV depth maps store it), not the
+distance to the eye; `Frame.linear_depth` is that depth / far.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Optional
 
 import numpy as np
@@ -27,6 +39,26 @@ def _vec3(value, name: str) -> tuple[float, float, float]:
 
 
 PROJECTIONS = ("perspective", "orthographic")
+
+
+def _matrix(value, shape, name: str) -> np.ndarray:
+    try:
+        m = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be numbers of shape {shape}, got {value!r}") from None
+    if m.shape != shape:
+        m = m.reshape(-1) if m.size == int(np.prod(shape)) and len(shape) == 1 else m
+    if m.shape != shape:
+        raise ValueError(f"{name} must have shape {shape}, got {m.shape}")
+    if not np.isfinite(m).all():
+        raise ValueError(f"{name} has a NaN or infinite value: {m.tolist()}")
+    return m
+
+
+def _image_size(width, height) -> tuple[int, int]:
+    if not all(isinstance(v, (int, np.integer)) and not isinstance(v, bool) and v > 0 for v in (width, height)):
+        raise ValueError(f"image size must be two positive integers, got width={width!r} height={height!r}")
+    return int(width), int(height)
 
 
 def _is_real(x) -> bool:
@@ -44,6 +76,7 @@ class Camera:
     projection: str = "perspective"    # or "orthographic"
     xmag: Optional[float] = None       # orthographic: half-width of the view volume (world units; see module doc)
     ymag: Optional[float] = None       # orthographic: half-height of the view volume (world units)
+    intrinsics: Optional[tuple[float, float, float, float]] = None   # (fx/W, fy/H, cx/W, cy/H); see module doc
 
     def __post_init__(self):
         object.__setattr__(self, "eye", _vec3(self.eye, "eye"))
@@ -53,6 +86,16 @@ class Camera:
             raise ValueError(f"camera projection must be one of {PROJECTIONS}, got {self.projection!r}")
         if not (_is_real(self.fov_y_deg) and 0.0 < self.fov_y_deg < 180.0):
             raise ValueError(f"camera fov_y_deg must be in (0, 180), got {self.fov_y_deg}")
+        if self.intrinsics is not None:
+            if self.is_orthographic:
+                raise ValueError("camera intrinsics (a pinhole K) apply to perspective cameras only")
+            k = np.asarray(self.intrinsics, np.float64).reshape(-1)
+            if k.shape != (4,) or not np.isfinite(k).all() or k[0] <= 0 or k[1] <= 0:
+                raise ValueError(f"camera intrinsics must be 4 finite numbers (fx/W, fy/H, cx/W, cy/H) with "
+                                 f"positive focal lengths, got {self.intrinsics!r}")
+            object.__setattr__(self, "intrinsics", tuple(float(v) for v in k))
+            # the vertical field of view K implies, for code that reads fov_y_deg
+            object.__setattr__(self, "fov_y_deg", float(np.degrees(2.0 * np.arctan(0.5 / k[1]))))
         if self.is_orthographic:
             for name in ("xmag", "ymag"):
                 v = getattr(self, name)
@@ -90,6 +133,49 @@ class Camera:
         (glTF viewers' rule; `xmag` is kept but does not change the image)."""
         return cls(eye, target, up, near=near, far=far, projection="orthographic", xmag=xmag, ymag=ymag)
 
+    @classmethod
+    def from_opencv(cls, K, R, t, width: int, height: int, near: float = 0.1, far: float = 100.0) -> "Camera":
+        """The camera of OpenCV's pinhole model: K (3×3: fx, fy, cx, cy in pixels of a width × height
+        image, no skew), R (3×3 rotation) and t (3,) map world points to camera coordinates
+        (x right, y down, z forward): pixel = K(RX + t) / z, pixel centres at integer + 0.5 (module
+        doc). ValueError for a singular or skewed K, non-positive focal lengths, an R that is not a
+        rotation (within 1e-4), non-finite values or a bad image size."""
+        width, height = _image_size(width, height)
+        K = _matrix(K, (3, 3), "K")
+        R = _matrix(R, (3, 3), "R")
+        t = _matrix(t, (3,), "t")
+        fx, fy, cx, cy = K[0, 0], K[1, 1], K[0, 2], K[1, 2]
+        if not (fx > 0 and fy > 0):
+            raise ValueError(f"K's focal lengths must be positive, got fx={fx:g} fy={fy:g}")
+        if abs(K[0, 1]) > 1e-9 * fx or np.any(K[1:, 0] != 0) or K[2, 1] != 0 or K[2, 2] != 1:
+            raise ValueError(f"K must be [[fx, 0, cx], [0, fy, cy], [0, 0, 1]] (no skew), got {K.tolist()}")
+        if np.abs(R @ R.T - np.eye(3)).max() > 1e-4 or abs(np.linalg.det(R) - 1.0) > 1e-4:
+            raise ValueError(f"R is not a rotation within 1e-4 (R·Rᵀ = I, det R = +1), got {R.tolist()}")
+        eye = -R.T @ t
+        return cls(tuple(eye), tuple(eye + R[2]), tuple(-R[1]), near=float(near), far=float(far),
+                   intrinsics=(fx / width, fy / height, cx / width, cy / height))
+
+    def to_opencv(self, width: int, height: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(K, R, t) of this perspective camera rendered at width × height (float64; the inverse of
+        from_opencv, module doc for the pixel convention)."""
+        if self.is_orthographic:
+            raise ValueError("an orthographic camera has no pinhole K (to_opencv is for perspective cameras)")
+        width, height = _image_size(width, height)
+        tan_x, tan_y = self.half_extents(width / height)
+        ox, oy = self.principal_offset()
+        K = np.array([[width / (2 * tan_x), 0.0, (ox + 1.0) * width / 2],
+                      [0.0, height / (2 * tan_y), (1.0 - oy) * height / 2],
+                      [0.0, 0.0, 1.0]])
+        v = self.view_matrix()
+        R = np.stack([v[0, :3], -v[1, :3], -v[2, :3]])
+        return K, R, -R @ np.asarray(self.eye)
+
+    def principal_offset(self) -> tuple[float, float]:
+        """(ox, oy): the principal point in NDC (x right, y up); (0, 0) for a centred frustum."""
+        if self.intrinsics is None:
+            return 0.0, 0.0
+        return 2.0 * self.intrinsics[2] - 1.0, 1.0 - 2.0 * self.intrinsics[3]
+
     @property
     def is_orthographic(self) -> bool:
         return self.projection == "orthographic"
@@ -109,7 +195,10 @@ class Camera:
 
     def half_extents(self, aspect: float) -> tuple[float, float]:
         """(x, y) half-extents of the image: per unit view depth for a perspective camera
-        (tan(fov/2)·aspect, tan(fov/2)), in world units for an orthographic one (ymag·aspect, ymag)."""
+        (tan(fov/2)·aspect, tan(fov/2)), in world units for an orthographic one (ymag·aspect, ymag).
+        An intrinsic camera's come from K alone (W/(2fx), H/(2fy)), whatever the aspect."""
+        if self.intrinsics is not None:
+            return 0.5 / self.intrinsics[0], 0.5 / self.intrinsics[1]
         t = self.ymag if self.is_orthographic else float(np.tan(np.radians(self.fov_y_deg) / 2.0))
         return t * aspect, t
 
@@ -124,10 +213,12 @@ class Camera:
             m[2, 2] = 2.0 / (n - f)
             m[2, 3] = (f + n) / (n - f)
             return m
-        t = 1.0 / np.tan(np.radians(self.fov_y_deg) / 2.0)
+        tan_x, tan_y = self.half_extents(aspect)
+        ox, oy = self.principal_offset()
         m = np.zeros((4, 4))
-        m[0, 0] = t / aspect
-        m[1, 1] = t
+        m[0, 0] = 1.0 / tan_x
+        m[1, 1] = 1.0 / tan_y
+        m[0, 2], m[1, 2] = -ox, -oy          # x_ndc = x/(-z)/tan_x + ox
         m[2, 2] = (f + n) / (n - f)
         m[2, 3] = 2.0 * f * n / (n - f)
         m[3, 2] = -1.0
@@ -165,6 +256,7 @@ def with_overrides(cam: Camera, bounds, eye=None, target=None, fov=None, ortho=N
     target = cam.target if target is None else target
     if ortho is None and fov is None and cam.is_orthographic:
         ortho = cam.ymag                          # the scene's orthographic camera, moved
+    keep_fov = fov is None
     fov = cam.fov_y_deg if fov is None else fov
     far = cam.far
     if eye is not cam.eye or target is not cam.target:
@@ -177,6 +269,9 @@ def with_overrides(cam: Camera, bounds, eye=None, target=None, fov=None, ortho=N
         raise ValueError(f"camera eye and target are the same point {tuple(eye)}")
     if np.linalg.norm(np.cross(forward, up)) < 1e-6 * np.linalg.norm(forward):
         up = np.array([0.0, 0.0, -1.0])          # looking straight up or down
+    if ortho is None and keep_fov and cam.intrinsics is not None:     # a moved pinhole keeps its K
+        return replace(cam, eye=tuple(eye), target=tuple(target), up=tuple(up), near=min(cam.near, far * 0.5),
+                       far=far)
     if ortho is not None:
         xmag = cam.xmag * ortho / cam.ymag if cam.is_orthographic else ortho
         return Camera.orthographic(eye, target, tuple(up), xmag, ortho, near=min(cam.near, far * 0.5), far=far)

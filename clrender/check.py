@@ -23,6 +23,8 @@ from .scene import Scene
 # "peak_or_rel": |a-b| <= max(tol_peak·max|a|, tol_rel·|a|).
 TOLERANCES = {
     "triangle_id": ("exact", 0.0),
+    "object_id": ("exact", 0.0),       # from triangle_id through the scene's tables
+    "material_id": ("exact", 0.0),
     "light_count": ("exact", 0.0),
     "depth": ("rel", 1e-6),           # same fixed-point raster: only depth/far·far rounding
     "normal": ("abs", 2e-3),          # 12-bit octahedral: a last-bit difference is ~1e-3
@@ -259,7 +261,7 @@ def _transparent_case(rng) -> Scene:
     return scene
 
 
-AOVS = ("triangle_id", "depth", "normal", "albedo", "specular_intensity", "specular_power", "base_color", "metallic",
+AOVS = ("triangle_id", "object_id", "material_id", "depth", "normal", "albedo", "specular_intensity", "specular_power", "base_color", "metallic",
         "roughness", "shading_model", "emissive", "occlusion", "velocity", "light_count", "ao", "shadow", "fragment_count", "transmittance", "edges", "color", "image")
 
 

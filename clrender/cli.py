@@ -1,4 +1,4 @@
-"""Command line: `clrender render | devices | check | info`, a thin loop over the library API
+"""Command line: `clrender render | dataset | devices | check | info`, a thin loop over the library API
 (the grammar: clrender/cli_parser.py; frames and clusters: clrender/cli_batch.py).
 
     clrender render SCENE [SCENE ...] -o OUT [--width W --height H --device NAME --tile-size N
@@ -17,6 +17,10 @@
                     --ortho HALF_HEIGHT --bit-depth 8|16 --exr --video FILE --fps N --quiet
                     --frames A:B[:STEP]|N|all --time-range T0:T1 --resume --workers N
                     --scheduler ADDRESS --resources NAME=N]
+    clrender dataset SCENE -o DIR --views N [--layout orbit|sphere|random --seed S --elevation DEG --fov DEG]
+                     [--cameras FILE.json|.toml] [--format nerf|colmap] [--aov depth,object_id,...|none]
+                     [--depth-scale S] [--exr] [--width W --height H --device NAME, render options]
+                     [--resume] [--workers N | --scheduler ADDRESS]      (clrender/cli_dataset.py)
     clrender devices [--json] [--require NAME]
     clrender warmup [--device NAME] [--all] [-q]
     clrender cache info [--json] | clear
@@ -522,9 +526,9 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
         args = build_parser().parse_args(_join_vector_options(argv))
         _one_line_warnings(getattr(args, "quiet", False))
         progress.show_bars(not getattr(args, "quiet", False))    # first-run builds: a bar, not silence
-        from . import cli_setup
+        from . import cli_dataset, cli_setup
         commands = {"render": cmd_render, "devices": cmd_devices, "check": cmd_check, "info": cmd_info,
-                    "warmup": cli_setup.run_warmup, "cache": cli_setup.run_cache}
+                    "warmup": cli_setup.run_warmup, "cache": cli_setup.run_cache, "dataset": cli_dataset.cmd_dataset}
         return int(commands[args.command](args) or 0)
     except SystemExit as exc:                    # --help / --version
         return exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 1)

@@ -99,6 +99,30 @@ def _resources(text):
     return out
 
 
+def run_job(args, tasks, manifest_path, fps: float, what: str):
+    """Run planned tasks here, on --workers or on --scheduler (--resume, --resources), with the
+    notes of the CLI; prints one error line per failed frame and returns the BatchResult."""
+    resources = _resources(args.resources)
+    if resources and args.scheduler is None:
+        raise CLIError("--resources goes with --scheduler (the workers of a local cluster have none)")
+    with dask_client(args) as client:
+        where = "in this process" if client is None else (
+            f"on {args.workers} local Dask workers" if args.workers else f"on the Dask cluster {args.scheduler}")
+        _note(args, f"{PROG}: {what} {where}")
+        try:
+            result = run_tasks(tasks, manifest_path, fps, client=client, resume=args.resume, quiet=args.quiet,
+                               resources=resources)
+        except ValueError as exc:
+            raise CLIError(str(exc)) from None
+    rate = len(result.rendered) / result.wall_s if result.wall_s > 0 else 0.0
+    _note(args, f"{PROG}: {len(result.rendered)} rendered, {len(result.skipped)} already complete, "
+                f"{len(result.failed)} failed in {result.wall_s:.1f} s ({rate:.2f} frames/s); "
+                f"manifest {result.manifest}")
+    for scene, frame, error in result.failed:
+        print(f"{PROG}: error: {scene} frame {frame}: {error}", file=sys.stderr, flush=True)
+    return result
+
+
 def cmd_render_frames(args, options: dict) -> int:
     fps = 24.0 if args.fps is None else args.fps
     if not (0 < fps < float("inf")):
@@ -121,25 +145,8 @@ def cmd_render_frames(args, options: dict) -> int:
             if os.path.realpath(p) in inputs:
                 raise CLIError(f"output {p} would overwrite an input scene")
     _check_writable([Path(t.image).parent for t in tasks] + [manifest_path.parent])
-    resources = _resources(args.resources)
-    if resources and args.scheduler is None:
-        raise CLIError("--resources goes with --scheduler (the workers of a local cluster have none)")
-    with dask_client(args) as client:
-        where = "in this process" if client is None else (
-            f"on {args.workers} local Dask workers" if args.workers else f"on the Dask cluster {args.scheduler}")
-        _note(args, f"{PROG}: {len(tasks)} frame(s) of {len(args.scenes)} scene(s) {where}")
-        try:
-            result = run_tasks(tasks, manifest_path, fps, client=client, resume=args.resume, quiet=args.quiet,
-                               resources=resources)
-        except ValueError as exc:
-            raise CLIError(str(exc)) from None
-    rate = len(result.rendered) / result.wall_s if result.wall_s > 0 else 0.0
-    _note(args, f"{PROG}: {len(result.rendered)} rendered, {len(result.skipped)} already complete, "
-                f"{len(result.failed)} failed in {result.wall_s:.1f} s ({rate:.2f} frames/s); "
-                f"manifest {result.manifest}")
+    result = run_job(args, tasks, manifest_path, fps, f"{len(tasks)} frame(s) of {len(args.scenes)} scene(s)")
     if result.failed:
-        for scene, frame, error in result.failed:
-            print(f"{PROG}: error: {scene} frame {frame}: {error}", file=sys.stderr, flush=True)
         print(f"{PROG}: error: {len(result.failed)} of {len(tasks)} frames failed"
               + (f"; {args.video} not written" if args.video else ""), file=sys.stderr, flush=True)
         return 1

@@ -1,5 +1,6 @@
 """The command line's grammar: `clrender render | devices | check | info` and their options'
-types. `clrender.cli` runs the commands; this module only describes and checks the arguments."""
+types (`dataset`'s: clrender/cli_dataset.py, sharing add_render_options and add_batch_options).
+`clrender.cli` runs the commands; this module only describes and checks the arguments."""
 from __future__ import annotations
 
 import argparse
@@ -132,10 +133,94 @@ def _join_vector_options(argv: list[str]) -> list[str]:
     return out
 
 
-def build_parser() -> argparse.ArgumentParser:
+def add_render_options(p) -> None:
+    """The size, device and RenderConfig flags `render` and `dataset` share (cli.render_options reads them)."""
     from .renderer import (LIGHT_BUFFER_PRECISION, LIGHT_BUFFER_SPECULAR, LIGHT_CULLING, PIPELINES, SHADING,
                            TRANSPARENCY)
+    p.add_argument("--width", type=_positive_int, metavar="W",
+                   help="image width (default: the scene's [render] width, else 1280)")
+    p.add_argument("--height", type=_positive_int, metavar="H",
+                   help="image height (default: the scene's [render] height, else 720)")
+    p.add_argument("--device", metavar="NAME",
+                   help="OpenCL device: a name substring or P:D (default: $CLRENDER_DEVICE, else a GPU, "
+                        "else PoCL); see `clrender devices`")
+    p.add_argument("--tile-size", type=int, metavar="N", help="raster tile size in pixels: 8, 16 or 32 (default 8)")
+    p.add_argument("--light-tile-size", type=int, metavar="N", help="light-culling tile size: 8, 16 or 32 (default 32)")
+    p.add_argument("--light-culling", choices=LIGHT_CULLING,
+                   help="light lists per tile: culled against tile frusta, every light, each light's screen "
+                        "quad, or tiled lists with per-pixel stencil bits (default tiled; "
+                        "docs/light_accumulation.md)")
+    p.add_argument("--pipeline", choices=PIPELINES,
+                   help="renderer variant: deferred shading, Engel's light pre-pass, or Trebilco's light-indexed "
+                        "deferred (default deferred; docs/variants.md)")
+    p.add_argument("--shading", choices=SHADING,
+                   help="auto: glTF metallic-roughness materials with the glTF 2.0 BRDF, the others Blinn-Phong; "
+                        "blinn_phong: the report's model for every material (default auto; docs/shading.md)")
+    p.add_argument("--msaa", type=int, metavar="N",
+                   help="with --pipeline light_prepass: colour sub-samples per pixel, 1, 2, 4 or 8 (default 1)")
+    p.add_argument("--light-buffer-specular", choices=LIGHT_BUFFER_SPECULAR,
+                   help="with --pipeline light_prepass: specular RGB, or its luminance coloured by the diffuse "
+                        "light (default rgb)")
+    p.add_argument("--light-buffer-precision", choices=LIGHT_BUFFER_PRECISION,
+                   help="with --pipeline light_prepass: light buffer of floats or halves (default float32)")
+    p.add_argument("--tonemap", choices=("reinhard", "aces", "clamp"), help="tone-mapping operator (default reinhard)")
+    p.add_argument("--exposure", type=float, metavar="X", help="exposure multiplier before tone mapping (default 1)")
+    p.add_argument("--ssao", action="store_true", default=None, help="screen-space ambient occlusion (default off)")
+    p.add_argument("--ssao-radius", type=float, metavar="R", help="with --ssao: its radius in world units (default 1)")
+    p.add_argument("--ssao-strength", type=float, metavar="S", help="with --ssao: ao = 1 - S·occlusion (default 1)")
+    p.add_argument("--transparency", choices=TRANSPARENCY,
+                   help="how BLEND materials are drawn: per-pixel sorted fragment lists, depth peeling, or "
+                        "a stipple pattern in the G-buffer (default abuffer)")
+    p.add_argument("--peel-layers", type=_positive_int, metavar="N",
+                   help="with --transparency depth_peeling: layers peeled per pixel, 1..64 (default 4)")
+    p.add_argument("--max-fragments-per-pixel", type=_non_negative_int, metavar="K",
+                   help="with the A-buffer: keep only the K nearest transparent fragments of a pixel "
+                        "(default 0: all of them)")
+    p.add_argument("--refraction", action="store_true", default=None,
+                   help="distort what lies behind transparent surfaces by their materials' refraction "
+                        "(default off)")
+    p.add_argument("--edge-aa", action="store_true", default=None,
+                   help="the report's edge-smoothing filter: blur along G-buffer edges (default off)")
+    p.add_argument("--edge-depth-threshold", type=float, metavar="T",
+                   help="with --edge-aa: relative view-depth jump that marks an edge (default 0.05)")
+    p.add_argument("--edge-normal-threshold", type=float, metavar="DEG",
+                   help="with --edge-aa: normal angle in degrees that marks an edge (default 30)")
+    p.add_argument("--fxaa", action="store_true", default=None,
+                   help="FXAA: luminance-edge anti-aliasing of the tone-mapped image (default off)")
+    p.add_argument("--supersample", type=_positive_int, metavar="K",
+                   help="render at K·W × K·H and filter down in linear HDR, K in 1..4 (default 1)")
+    p.add_argument("--supersample-filter", choices=("box", "lanczos2", "mitchell"),
+                   help="with --supersample: the resolve filter (default box)")
+    p.add_argument("--bloom", action="store_true", default=None,
+                   help="bloom: HDR colour above --bloom-threshold, blurred and added back (default off)")
+    p.add_argument("--bloom-threshold", type=float, metavar="T", help="with --bloom: linear HDR threshold (default 1)")
+    p.add_argument("--bloom-strength", type=float, metavar="S", help="with --bloom: strength (default 0.1)")
+    p.add_argument("--bloom-radius", type=float, metavar="PX", help="with --bloom: radius in pixels (default 16)")
+    p.add_argument("--motion-blur", action="store_true", default=None,
+                   help="motion blur along the per-pixel velocity; give motion with --previous-eye/"
+                        "--previous-target (default off)")
+    p.add_argument("--shutter", type=float, metavar="F", help="with --motion-blur: exposure in frames (default 0.5)")
+    p.add_argument("--motion-blur-samples", type=_positive_int, metavar="N",
+                   help="with --motion-blur: samples along the velocity, 2..64 (default 8)")
+    p.add_argument("--hatching", action="store_true", default=None,
+                   help="the report's non-photorealistic hatching of the image (default off)")
+    p.add_argument("--hatching-scale", type=float, metavar="S", help="with --hatching: stroke scale (default 1)")
+    p.add_argument("--hatching-saturation", type=float, metavar="S",
+                   help="with --hatching: colour kept, 0 (ink on white) .. 1 (default 0.3)")
 
+
+def add_batch_options(g) -> None:
+    """--resume, --workers, --scheduler, --resources (cli_batch.dask_client reads them)."""
+    g.add_argument("--resume", action="store_true",
+                   help="skip frames the output folder's manifest.json shows complete")
+    g.add_argument("--workers", type=_positive_int, metavar="N",
+                   help="render on a local Dask cluster of N worker processes")
+    g.add_argument("--scheduler", metavar="ADDRESS", help="render on the Dask cluster at ADDRESS (tcp://host:8786)")
+    g.add_argument("--resources", metavar="NAME=N[,...]",
+                   help="with --scheduler: run only on workers with these Dask resources (e.g. GPU=1)")
+
+
+def build_parser() -> argparse.ArgumentParser:
     parser = _Parser(prog=PROG, description="clrender: a tiled deferred renderer whose pixels are "
                                             "computed by OpenCL kernels.")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
@@ -152,80 +237,11 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("scenes", nargs="+", metavar="SCENE", help="scene file (.toml .gltf .glb .obj .ply .stl)")
     r.add_argument("-o", "--output", required=True, metavar="OUT",
                    help="image file, directory, or pattern containing {name}")
-    r.add_argument("--width", type=_positive_int, metavar="W",
-                   help="image width (default: the scene's [render] width, else 1280)")
-    r.add_argument("--height", type=_positive_int, metavar="H",
-                   help="image height (default: the scene's [render] height, else 720)")
-    r.add_argument("--device", metavar="NAME",
-                   help="OpenCL device: a name substring or P:D (default: $CLRENDER_DEVICE, else a GPU, "
-                        "else PoCL); see `clrender devices`")
-    r.add_argument("--tile-size", type=int, metavar="N", help="raster tile size in pixels: 8, 16 or 32 (default 8)")
-    r.add_argument("--light-tile-size", type=int, metavar="N", help="light-culling tile size: 8, 16 or 32 (default 32)")
-    r.add_argument("--light-culling", choices=LIGHT_CULLING,
-                   help="light lists per tile: culled against tile frusta, every light, each light's screen "
-                        "quad, or tiled lists with per-pixel stencil bits (default tiled; "
-                        "docs/light_accumulation.md)")
-    r.add_argument("--pipeline", choices=PIPELINES,
-                   help="renderer variant: deferred shading, Engel's light pre-pass, or Trebilco's light-indexed "
-                        "deferred (default deferred; docs/variants.md)")
-    r.add_argument("--shading", choices=SHADING,
-                   help="auto: glTF metallic-roughness materials with the glTF 2.0 BRDF, the others Blinn-Phong; "
-                        "blinn_phong: the report's model for every material (default auto; docs/shading.md)")
-    r.add_argument("--msaa", type=int, metavar="N",
-                   help="with --pipeline light_prepass: colour sub-samples per pixel, 1, 2, 4 or 8 (default 1)")
-    r.add_argument("--light-buffer-specular", choices=LIGHT_BUFFER_SPECULAR,
-                   help="with --pipeline light_prepass: specular RGB, or its luminance coloured by the diffuse "
-                        "light (default rgb)")
-    r.add_argument("--light-buffer-precision", choices=LIGHT_BUFFER_PRECISION,
-                   help="with --pipeline light_prepass: light buffer of floats or halves (default float32)")
-    r.add_argument("--tonemap", choices=("reinhard", "aces", "clamp"), help="tone-mapping operator (default reinhard)")
-    r.add_argument("--exposure", type=float, metavar="X", help="exposure multiplier before tone mapping (default 1)")
-    r.add_argument("--ssao", action="store_true", default=None, help="screen-space ambient occlusion (default off)")
-    r.add_argument("--ssao-radius", type=float, metavar="R", help="with --ssao: its radius in world units (default 1)")
-    r.add_argument("--ssao-strength", type=float, metavar="S", help="with --ssao: ao = 1 - S·occlusion (default 1)")
-    r.add_argument("--transparency", choices=TRANSPARENCY,
-                   help="how BLEND materials are drawn: per-pixel sorted fragment lists, depth peeling, or "
-                        "a stipple pattern in the G-buffer (default abuffer)")
-    r.add_argument("--peel-layers", type=_positive_int, metavar="N",
-                   help="with --transparency depth_peeling: layers peeled per pixel, 1..64 (default 4)")
-    r.add_argument("--max-fragments-per-pixel", type=_non_negative_int, metavar="K",
-                   help="with the A-buffer: keep only the K nearest transparent fragments of a pixel "
-                        "(default 0: all of them)")
-    r.add_argument("--refraction", action="store_true", default=None,
-                   help="distort what lies behind transparent surfaces by their materials' refraction "
-                        "(default off)")
-    r.add_argument("--edge-aa", action="store_true", default=None,
-                   help="the report's edge-smoothing filter: blur along G-buffer edges (default off)")
-    r.add_argument("--edge-depth-threshold", type=float, metavar="T",
-                   help="with --edge-aa: relative view-depth jump that marks an edge (default 0.05)")
-    r.add_argument("--edge-normal-threshold", type=float, metavar="DEG",
-                   help="with --edge-aa: normal angle in degrees that marks an edge (default 30)")
-    r.add_argument("--fxaa", action="store_true", default=None,
-                   help="FXAA: luminance-edge anti-aliasing of the tone-mapped image (default off)")
-    r.add_argument("--supersample", type=_positive_int, metavar="K",
-                   help="render at K·W × K·H and filter down in linear HDR, K in 1..4 (default 1)")
-    r.add_argument("--supersample-filter", choices=("box", "lanczos2", "mitchell"),
-                   help="with --supersample: the resolve filter (default box)")
-    r.add_argument("--bloom", action="store_true", default=None,
-                   help="bloom: HDR colour above --bloom-threshold, blurred and added back (default off)")
-    r.add_argument("--bloom-threshold", type=float, metavar="T", help="with --bloom: linear HDR threshold (default 1)")
-    r.add_argument("--bloom-strength", type=float, metavar="S", help="with --bloom: strength (default 0.1)")
-    r.add_argument("--bloom-radius", type=float, metavar="PX", help="with --bloom: radius in pixels (default 16)")
-    r.add_argument("--motion-blur", action="store_true", default=None,
-                   help="motion blur along the per-pixel velocity; give motion with --previous-eye/"
-                        "--previous-target (default off)")
-    r.add_argument("--shutter", type=float, metavar="F", help="with --motion-blur: exposure in frames (default 0.5)")
-    r.add_argument("--motion-blur-samples", type=_positive_int, metavar="N",
-                   help="with --motion-blur: samples along the velocity, 2..64 (default 8)")
+    add_render_options(r)
     r.add_argument("--previous-eye", type=_vec3, metavar="X,Y,Z",
                    help="the camera's position at the previous frame (velocity, motion blur)")
     r.add_argument("--previous-target", type=_vec3, metavar="X,Y,Z",
                    help="the point the camera looked at in the previous frame")
-    r.add_argument("--hatching", action="store_true", default=None,
-                   help="the report's non-photorealistic hatching of the image (default off)")
-    r.add_argument("--hatching-scale", type=float, metavar="S", help="with --hatching: stroke scale (default 1)")
-    r.add_argument("--hatching-saturation", type=float, metavar="S",
-                   help="with --hatching: colour kept, 0 (ink on white) .. 1 (default 0.3)")
     r.add_argument("--environment", metavar="PATH|studio|none",
                    help="HDR environment lighting the scene (image-based lighting): an .exr/.hdr/.pic "
                         "equirectangular image, the built-in neutral 'studio', or 'none' to remove the scene's "
@@ -265,13 +281,7 @@ def build_parser() -> argparse.ArgumentParser:
     b.add_argument("--frames", metavar="A:B[:STEP]|N|all",
                    help="frames A..B-1 (every STEP-th), frame N, or all of the scene's animation")
     b.add_argument("--time-range", metavar="T0:T1", help="the frames whose times lie in [T0, T1) seconds")
-    b.add_argument("--resume", action="store_true",
-                   help="skip frames the output folder's manifest.json shows complete")
-    b.add_argument("--workers", type=_positive_int, metavar="N",
-                   help="render on a local Dask cluster of N worker processes")
-    b.add_argument("--scheduler", metavar="ADDRESS", help="render on the Dask cluster at ADDRESS (tcp://host:8786)")
-    b.add_argument("--resources", metavar="NAME=N[,...]",
-                   help="with --scheduler: run only on workers with these Dask resources (e.g. GPU=1)")
+    add_batch_options(b)
     r.add_argument("-q", "--quiet", action="store_true", help="no progress or notes on stderr")
 
     d = sub.add_parser("devices", help="list OpenCL devices and whether clrender's kernels build on them",
@@ -281,7 +291,8 @@ def build_parser() -> argparse.ArgumentParser:
     d.add_argument("--require", action="append", default=[], metavar="NAME",
                    help="fail unless a device matching NAME runs clrender's kernels (repeatable; CI)")
 
-    from . import cli_setup
+    from . import cli_dataset, cli_setup
+    cli_dataset.add_parser(sub)         # dataset
     cli_setup.add_parsers(sub)          # warmup, cache
 
     c = sub.add_parser("check", help="render fixed cases on several devices and compare every AOV")

@@ -167,10 +167,15 @@ class Frame:
     readback: Readback = field(default_factory=Readback, repr=False)
     triangle_gltf: Optional[np.ndarray] = field(default=None, repr=False)   # (T,) bool: the triangle's material
                                                                             # is shaded with the glTF BRDF
+    # Per-triangle tables the ids are derived from (object_id, material_id): the scene's arrays at
+    # render() (not copied; Scene.set_transform and pose replace neither)
+    triangle_object: Optional[np.ndarray] = field(default=None, repr=False)    # (T,) int32 into scene.objects
+    triangle_material: Optional[np.ndarray] = field(default=None, repr=False)  # (T,) int32 into scene.materials
+    camera: Optional[object] = field(default=None, repr=False)               # the Camera rendered (position)
 
     AOV_NAMES = ("color", "light_count", "depth", "linear_depth", "normal", "albedo", "triangle_id", "velocity",
                  "specular_intensity", "specular_power", "base_color", "metallic", "roughness", "shading_model",
-                 "emissive", "occlusion", "ao", "shadow", "fragment_count",
+                 "emissive", "occlusion", "object_id", "material_id", "position", "ao", "shadow", "fragment_count",
                  "transmittance", "edges", "image")
 
     # -- arrays read from the device ----------------------------------------------------------
@@ -287,6 +292,60 @@ class Frame:
             fg = tri >= 0
             out[fg] = self.triangle_gltf[tri[fg]].astype(np.int8)
         return out
+
+    @cached_property
+    def _surface_triangle(self) -> np.ndarray:
+        """The nearest surface's triangle: the nearest transparent (BLEND) fragment where the A-buffer
+        or depth peeling found one in front of the opaque surface, else triangle_id."""
+        tri = self.triangle_id
+        if "nearest_triangle" not in self.readback.names():
+            return tri
+        nearest = self.readback.get("nearest_triangle")
+        return np.where(nearest >= 0, nearest, tri)
+
+    def _per_triangle(self, table: Optional[np.ndarray], what: str) -> np.ndarray:
+        tri = self._surface_triangle
+        if table is None:
+            raise ValueError(f"this Frame carries no per-triangle {what} table (frames from Renderer.render do)")
+        out = np.full(tri.shape, -1, np.int32)
+        fg = tri >= 0
+        out[fg] = table[tri[fg]]
+        return out
+
+    @cached_property
+    def object_id(self) -> np.ndarray:
+        """(H, W) int32 index into `scene.objects` (the drawn instance: a glTF node, an OBJ group, a
+        TOML [[mesh]] entry), -1 on background: the nearest surface's. That is the nearest
+        transparent (BLEND) fragment where one lies in front of the opaque surface (the A-buffer's
+        first fragment in its (depth, triangle id) order, depth peeling's layer 0; screen-door
+        draws BLEND surfaces into the G-buffer), else the G-buffer's `triangle_id`. Derived from
+        those triangle ids through per-triangle tables: the G-buffer spends no bit on it."""
+        return self._per_triangle(self.triangle_object, "object")
+
+    @cached_property
+    def material_id(self) -> np.ndarray:
+        """(H, W) int32 index into `scene.materials`, -1 on background: the nearest surface's, as object_id."""
+        return self._per_triangle(self.triangle_material, "material")
+
+    @cached_property
+    def position(self) -> np.ndarray:
+        """(H, W, 3) float32 world-space position of the surface at each pixel centre, NaN on
+        background: the camera's ray through the pixel centre (Camera.principal_offset honoured)
+        at `depth`, the z-depth along the optical axis (orthographic: parallel rays)."""
+        if self.camera is None:
+            raise ValueError("this Frame carries no camera (frames from Renderer.render do)")
+        cam = self.camera
+        w, h = self.width, self.height
+        tan_x, tan_y = cam.half_extents(w / h)
+        ox, oy = cam.principal_offset()
+        right, up, back = cam.basis()
+        x = ((np.arange(w) + 0.5) * (2.0 / w) - 1.0 - ox) * tan_x            # lateral offsets of the pixel
+        y = (1.0 - (np.arange(h) + 0.5) * (2.0 / h) - oy) * tan_y            # centres, per unit depth
+        lateral = x[None, :, None] * right + y[:, None, None] * up           # (H, W, 3)
+        depth = np.where(self._background, np.nan, self.depth.astype(np.float64))[..., None]
+        eye = np.asarray(cam.eye, np.float64)
+        p = eye + lateral + depth * -back if cam.is_orthographic else eye + depth * (lateral - back)
+        return p.astype(np.float32)
 
     def _model_field(self, name: str, model: int) -> np.ndarray:
         """A model-dependent field (clrender.gbuffer: they share bits), 0 on other pixels."""

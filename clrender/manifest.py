@@ -6,7 +6,7 @@ manifest of the frames finished up to a second before the kill.
      "frames": [{"scene": "a.gltf", "frame": 3, "time": 0.125, "status": "ok",
                  "outputs": [{"path": "frame_0003.png", "bytes": 81234}, ...],
                  "stats": {...Frame.stats...}, "device": "...", "worker": "...", "run": "...",
-                 "wall_ms": 812.5},
+                 "wall_ms": 812.5, "skipped_by": ["..."]},      # runs that --resume'd past it
                 {"scene": ..., "frame": 4, "status": "failed", "error": "..."}]}
 
 Output paths are relative to the manifest's folder. `--resume` trusts a frame only when the
@@ -107,6 +107,12 @@ class Manifest:
         if "outputs" in record:
             record["outputs"] = [{"path": self.relative(p), "bytes": os.path.getsize(p)} for p in record["outputs"]]
         self.records[(scene, int(frame))] = _jsonable(record)
+
+    def mark_skipped(self, scene: str, frame: int, run: str) -> None:
+        """A --resume run found the frame complete: its record keeps the run that rendered it and
+        lists, in "skipped_by", the runs that skipped it."""
+        record = self.records[(scene, int(frame))]
+        record["skipped_by"] = [*record.get("skipped_by", []), run]
 
     def failed(self) -> list[dict]:
         return [r for _, r in sorted(self.records.items()) if r.get("status") != "ok"]

@@ -152,10 +152,10 @@ def _transparency(px: int, tiles: int, n_tris: int, n_blend: int, config) -> dic
            + structs.prim_dtype.itemsize * max(1024, n_blend + n_blend // 8),
            "composite.color": 12 * px}
     if config.transparency == "abuffer":
-        out["abuffer.offsets+layers"] = 28 * px
+        out["abuffer.offsets+layers"] = 32 * px
         out["abuffer.frag_depth+frag_prim"] = 8 * 2 * px      # initial capacity: 2 fragments per pixel
     else:
-        out["peel.layer+layers"] = 32 * px
+        out["peel.layer+layers"] = 36 * px
     return out
 
 

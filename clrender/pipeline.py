@@ -188,6 +188,7 @@ class Pipeline:
                     "triangles", "tri_material", "materials", "texels", "srgb_lut", "tex_infos", "tex_levels", "n_tris", "view_proj", "prev_view_proj",
                     "near", "far", "width", "height", "has_prev", "tiles_x", "tiles_y",
                     "lights", "n_lights", "ambient", "view_matrix", "camera_params", "tan_x", "tan_y",
+                    "shift_x", "shift_y",
                     "srgb_encode", "particle_systems", "time", "sun", "shadow_lights", "scene_bounds", "camera",
                     "n_transparent_tris", "gltf_scene", "environment"}
         for p in self.passes:
@@ -214,22 +215,24 @@ class Pipeline:
     def _set_camera(self, camera, width, height, prev_camera):
         """Upload the camera matrices; returns the scalar camera values passes read. tan_x, tan_y:
         the image's half-extents per unit depth (perspective) or in world units (orthographic:
-        ymag·aspect, ymag), as the camera block's R·tan_x, U·tan_y."""
+        ymag·aspect, ymag), as the camera block's R·tan_x, U·tan_y; shift_x, shift_y: the principal
+        point in NDC (Camera.principal_offset), also the camera block's eye.w and F.w."""
         if camera.is_orthographic != self.ortho:
             raise ValueError(f"this pipeline renders {'orthographic' if self.ortho else 'perspective'} cameras, "
                              f"got a {camera.projection} one (Renderer picks the pipeline)")
         vp = camera.raster_matrix(width, height)
         prev = prev_camera.view_projection(width, height) if prev_camera else camera.view_projection(width, height)
-        tan_y = float(camera.ymag) if self.ortho else float(np.tan(np.radians(camera.fov_y_deg) / 2))
-        tan_x = tan_y * width / height
+        tan_x, tan_y = (float(v) for v in camera.half_extents(width / height))
+        shift_x, shift_y = camera.principal_offset()     # an off-centre principal point (Camera.from_opencv)
         right, up, back = camera.basis()
         params = np.zeros((4, 4))
         params[0, :3], params[1, :3], params[2, :3], params[3, :3] = camera.eye, -back, right * tan_x, up * tan_y
+        params[0, 3], params[1, 3] = shift_x, shift_y
         for name, m in (("view_proj", vp), ("prev_view_proj", prev), ("view_matrix", camera.view_matrix()),
                         ("camera_params", params)):
             self.matrices[name].set(np.ascontiguousarray(m, np.float32).reshape(-1), queue=self.queue)
         return dict(width=width, height=height, near=camera.near, far=camera.far,
-                    has_prev=int(prev_camera is not None), tan_x=tan_x, tan_y=tan_y)
+                    has_prev=int(prev_camera is not None), tan_x=tan_x, tan_y=tan_y, shift_x=shift_x, shift_y=shift_y)
 
     def render(self, scene_res: Resources, camera, width, height, prev_camera=None, time=0.0):
         """Run every pass; returns (outputs: dict of host arrays, stats dict). stats["host"] splits
@@ -370,6 +373,7 @@ class Pipeline:
         if transparent:
             rb.add("fragment_count", self.transparency[0].frag_count[:n], internal())
             rb.add("transmittance", res["layers"][3 * n: 4 * n], internal())    # the layers' transmittance plane
+            rb.add("nearest_triangle", res["layers"][6 * n: 7 * n], lambda a: internal()(a).view(np.int32))
         else:
             rb.make("fragment_count", lambda: np.zeros((height, width), np.int32))
             rb.make("transmittance", lambda: np.ones((height, width), np.float32))

@@ -4,6 +4,12 @@ Every loader (glTF, OBJ/MTL, PLY, STL, TOML) produces this one representation.
 Triangle indices are load order and are what `Frame.triangle_id` reports; the
 scene never reorders or drops triangles (invalid ones are dropped and counted by
 the setup kernel, so ids stay stable).
+
+Objects (`Scene.objects`, what `Frame.object_id` indexes): one record per drawn instance. A glTF
+node with a mesh is one object (two nodes sharing a mesh are two), made of that mesh's
+primitives, which are the scene's meshes (`mesh_names`, pieces); an OBJ o/g group (a file
+without groups: the file), a PLY/STL file and a TOML [[mesh]] entry are one each. `mesh_object` maps each mesh to its object, so a triangle's
+object is mesh_object[triangle_mesh[t]].
 """
 from __future__ import annotations
 
@@ -95,6 +101,18 @@ class Texture:
         object.__setattr__(self, "rgba", rgba)
 
 
+@dataclass(frozen=True)
+class SceneObject:
+    """One drawn instance: `name` (the glTF node's, the OBJ group's, the TOML entry's), the name
+    of the `mesh` it draws, its `path` from the root ("parent/child" node names for glTF) and
+    the glTF node's `extras` (any JSON value: semantic labels travel here), None elsewhere."""
+    name: str
+    mesh: str
+    path: str
+    extras: object = None
+    node: Optional[int] = None          # glTF node index
+
+
 @dataclass
 class Scene:
     positions: np.ndarray                       # (V, 3) float32, world space
@@ -124,6 +142,9 @@ class Scene:
                                                 # the constant `ambient` term is not added
     deformation: Optional["Deformation"] = None  # skins and morph targets (clrender.deform): posed on the
                                                 # device; positions/normals/tangents hold the load pose
+    objects: list = field(default_factory=list)  # SceneObject per drawn instance (module doc); empty:
+                                                # one per mesh, named after it
+    mesh_object: Optional[np.ndarray] = None    # (len(mesh_names),) int32 index into objects
 
     def __post_init__(self):
         self.positions = np.ascontiguousarray(self.positions, dtype=np.float32).reshape(-1, 3)
@@ -137,6 +158,11 @@ class Scene:
             self.triangle_mesh = np.zeros(n_tri, np.int32)
         if self.triangle_face is None:
             self.triangle_face = np.arange(n_tri, dtype=np.int32)
+        if self.mesh_object is None:
+            if not self.objects:
+                self.objects = [SceneObject(n, n, n) for n in self.mesh_names]
+            self.mesh_object = np.arange(len(self.mesh_names), dtype=np.int32)
+        self.mesh_object = np.ascontiguousarray(self.mesh_object, dtype=np.int32).reshape(-1)
         if self.previous_positions is not None:
             self.previous_positions = np.ascontiguousarray(self.previous_positions, dtype=np.float32)
         if self.colors is not None:
@@ -396,6 +422,11 @@ class Scene:
         return self.uvs if k == 0 else self.extra_uvs[k - 1]
 
     @property
+    def triangle_object(self) -> np.ndarray:
+        """(T,) int32: each triangle's index into `objects`."""
+        return self.mesh_object[self.triangle_mesh]
+
+    @property
     def triangle_count(self) -> int:
         return int(len(self.triangles))
 
@@ -440,6 +471,20 @@ class Scene:
             raise SceneError(f"{where}: triangle_material must have one entry per triangle ({nt})")
         if nt and (self.triangle_material.min() < 0 or self.triangle_material.max() >= len(self.materials)):
             raise SceneError(f"{where}: a triangle references a material that does not exist")
+        if np.shape(self.triangle_mesh) != (nt,) or (nt and (self.triangle_mesh.min() < 0 or
+                                                            self.triangle_mesh.max() >= len(self.mesh_names))):
+            raise SceneError(f"{where}: triangle_mesh must index mesh_names ({len(self.mesh_names)}), one per triangle")
+        extra = len(self.mesh_names) - len(self.mesh_object)
+        if extra > 0 and self.mesh_object.ndim == 1:     # meshes appended after construction: one object each
+            self.objects = list(self.objects) + [SceneObject(n, n, n) for n in self.mesh_names[-extra:]]
+            self.mesh_object = np.concatenate([self.mesh_object, len(self.objects) - extra + np.arange(extra)]
+                                              ).astype(np.int32)
+        if self.mesh_object.shape != (len(self.mesh_names),) or (self.mesh_object.size and (
+                self.mesh_object.min() < 0 or self.mesh_object.max() >= len(self.objects))):
+            raise SceneError(f"{where}: mesh_object must map each of the {len(self.mesh_names)} meshes to one of the "
+                             f"{len(self.objects)} objects")
+        if not all(isinstance(o, SceneObject) for o in self.objects):
+            raise SceneError(f"{where}: objects must be SceneObject records")
         for name, shape in (("colors", (nv, 4)), ("tangents", (nv, 4))):
             a = getattr(self, name)
             if a is not None and (np.shape(a) != shape or not np.isfinite(a).all()):
@@ -462,6 +507,7 @@ class Scene:
             "triangles": self.triangle_count,
             "vertices": int(len(self.positions)),
             "meshes": len(self.mesh_names),
+            "objects": len(self.objects),
             "materials": len(self.materials),
             "textures": len(self.textures),
             "texture_sizes": [list(t.rgba.shape[1::-1]) for t in self.textures],

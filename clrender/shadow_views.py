@@ -113,6 +113,7 @@ def sun_views(sun, camera, aspect: float, bounds, cascades: int, lam: float) -> 
     eye, fwd = np.asarray(camera.eye, np.float64), -back
     ortho = camera.is_orthographic
     tan_x, tan_y = camera.half_extents(aspect)          # ortho: half-extents in world units
+    ox, oy = camera.principal_offset()                  # an off-centre pinhole's frustum is asymmetric
     depths = (corners - eye) @ fwd
     near = max(camera.near, float(depths.min()))
     far = min(camera.far, float(depths.max()))
@@ -122,7 +123,7 @@ def sun_views(sun, camera, aspect: float, bounds, cascades: int, lam: float) -> 
     out = []
     for c in range(cascades):
         pts = np.array([eye + d * fwd + (sx * tan_x * right + sy * tan_y * up) if ortho else
-                        eye + d * (fwd + sx * tan_x * right + sy * tan_y * up)
+                        eye + d * (fwd + (sx - ox) * tan_x * right + (sy - oy) * tan_y * up)
                         for d in (splits[c], splits[c + 1]) for sx in (-1, 1) for sy in (-1, 1)])
         lp = pts @ np.stack([s, u]).T
         a = np.maximum(lp.min(0), l_lo[:2])

@@ -10,12 +10,12 @@
  *    time: shaded by forward.h (the tile's light list, the sun, shadow maps) and blended under
  *    the fragments in front of it, lane by lane, until every lane's transmittance is below
  *    TRANSMITTANCE_EPSILON or its list ends. The nearest fragment's refraction offset is kept
- *    for composite.cl.
+ *    for composite.cl, and its triangle id (the nearest surface's: Frame.object_id).
  *
  * Buffers: list_len/list_offsets int[W·H]; frag_depth float[capacity], frag_prim int[capacity]
  *          (a pixel's list: [offset, offset + len)); scene, camera and lights: FORWARD_PARAMS.
- *          out: layers float[6][W·H] = blended colour (3 planes), transmittance, refraction
- *          offset x, y (pixels).
+ *          out: layers float[7][W·H] = blended colour (3 planes), transmittance, refraction
+ *          offset x, y (pixels), the nearest fragment's triangle id (int bits, -1: none).
  * Work-groups: 2-D, any shape; sort: a pixel per work-item; resolve: VEC pixels per work-item
  * (vec.h). No barriers, no local memory.
  */
@@ -106,6 +106,7 @@ kernel void abuffer_resolve(global const int* list_len, global const int* list_o
     }
     const Forward f = FORWARD_INIT;
     floatV ar = 0.0f, ag = 0.0f, ab = 0.0f, t = 1.0f, ox = 0.0f, oy = 0.0f;
+    intV nearest = -1;
     for (int i = 0; i < longest; ++i) {
         const intV active = ((intV)i < n) & (t >= TRANSMITTANCE_EPSILON);
         if (!ANY(active)) break;
@@ -120,9 +121,11 @@ kernel void abuffer_resolve(global const int* list_len, global const int* list_o
         if (i == 0) {
             ox = select((floatV)0.0f, fr.ox, active);
             oy = select((floatV)0.0f, fr.oy, active);
+            for (int l = 0; l < VEC; ++l)
+                if (LANE_I(active, l)) LANE_I(nearest, l) = f.scene.prims[LANE_I(pi, l)].tri;
         }
         blend_under(fr, active, &ar, &ag, &ab, &t);
     }
     for (int l = 0; l < VEC && px0 + l < width; ++l)
-        store_layers(layers, npix, py * width + px0 + l, l, ar, ag, ab, t, ox, oy);
+        store_layers(layers, npix, py * width + px0 + l, l, ar, ag, ab, t, ox, oy, nearest);
 }

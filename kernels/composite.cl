@@ -7,7 +7,7 @@
  * bilinearly from the opaque image, clamped to its edges). Pixels without a fragment
  * (T = 1, acc = 0, offset 0) copy the opaque colour unchanged.
  *
- * Buffers: opaque float[3][W·H] (shade.cl's HDR colour); layers float[6][W·H] (colour planes,
+ * Buffers: opaque float[3][W·H] (shade.cl's HDR colour); layers float[7][W·H] (colour planes,
  *          transmittance, offset x, y). out: color float[3][W·H].
  * Work-groups: 1-D, any size; no barriers, no local memory.
  */

@@ -73,8 +73,9 @@ static FragmentsV shade_fragments(const Forward* f, intV pi, floatV z, intV acti
 
     const float3 eye = vload4(0, f->camera).xyz, F = vload4(1, f->camera).xyz;
     const float3 Rs = vload4(2, f->camera).xyz, Us = vload4(3, f->camera).xyz;
-    const floatV xn = (convert_floatV(px) + 0.5f) * (2.0f / (float)f->width) - 1.0f;
-    const float yn = 1.0f - ((float)py + 0.5f) * (2.0f / (float)f->height);
+    /* NDC less the principal point (lighting.h pixel_positions) */
+    const floatV xn = (convert_floatV(px) + 0.5f) * (2.0f / (float)f->width) - (1.0f + f->camera[3]);
+    const float yn = (1.0f - f->camera[7]) - ((float)py + 0.5f) * (2.0f / (float)f->height);
 #if ORTHO   /* parallel rays from the eye plane (lighting.h pixel_positions) */
     const floatV dx = F.x, dy = F.y, dz = F.z;
     const floatV wx = (eye.x + xn * Rs.x + yn * Us.x) + z * F.x, wy = (eye.y + xn * Rs.y + yn * Us.y) + z * F.y;
@@ -140,9 +141,10 @@ static inline void blend_under(FragmentsV fr, intV active, floatV* ar, floatV* a
     *t = select(*t, *t * (1.0f - fr.a), active);
 }
 
-/* Stores lane l of the blended layers at pixel q: colour planes, transmittance, refraction offset. */
+/* Stores lane l of the blended layers at pixel q: colour planes, transmittance, refraction offset,
+ * and the nearest fragment's triangle id (int bits, -1: none; Frame.object_id's nearest rule). */
 static inline void store_layers(global float* layers, int npix, int q, int l, floatV ar, floatV ag, floatV ab,
-                                floatV t, floatV ox, floatV oy)
+                                floatV t, floatV ox, floatV oy, intV nearest)
 {
     layers[q] = LANE_F(ar, l);
     layers[npix + q] = LANE_F(ag, l);
@@ -150,5 +152,6 @@ static inline void store_layers(global float* layers, int npix, int q, int l, fl
     layers[3 * npix + q] = LANE_F(t, l);
     layers[4 * npix + q] = LANE_F(ox, l);
     layers[5 * npix + q] = LANE_F(oy, l);
+    layers[6 * npix + q] = as_float(LANE_I(nearest, l));
 }
 #endif

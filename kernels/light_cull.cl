@@ -11,7 +11,8 @@
  *     pixel, so a light floating in the empty gap of a depth discontinuity is rejected.
  *  3. `light_cull_count` / `light_cull_fill`: one work-item per tile tests every light, VEC
  *     lights at a time, against the tile's four side planes (through the eye; ORTHO: the
- *     tile's box, planes x = u·tan_x, y = v·tan_y parallel to the view axis) and its depth
+ *     tile's box, planes x = u·tan_x, y = v·tan_y parallel to the view axis; u, v: NDC less the
+ *     principal point shift_x, shift_y, 0 but for an off-centre pinhole camera) and its depth
  *     range; count, prefix sum (scan.cl), then fill in light-index order, so
  *     lists (and the shading sums over them) are the same on every run. No cap: the list
  *     buffer grows when the total says it must.
@@ -112,12 +113,14 @@ kernel void tile_depth_bounds(global const uint* gbuffer, int width, int height,
  * dot(n, p) + w >= 0, the planes at the tile's edges x = u·tan_x, y = v·tan_y). */
 typedef struct { float4 left, right, bottom, top; } TilePlanes;
 
-static TilePlanes tile_planes(int t, int tiles_x, int width, int height, float tan_x, float tan_y)
+static TilePlanes tile_planes(int t, int tiles_x, int width, int height, float tan_x, float tan_y,
+                              float shift_x, float shift_y)
 {
-    float u0 = (float)((t % tiles_x) * LTILE) / (float)width * 2.0f - 1.0f;
-    float u1 = (float)min((t % tiles_x) * LTILE + LTILE, width) / (float)width * 2.0f - 1.0f;
-    float v_top = 1.0f - (float)((t / tiles_x) * LTILE) / (float)height * 2.0f;
-    float v_bottom = 1.0f - (float)min((t / tiles_x) * LTILE + LTILE, height) / (float)height * 2.0f;
+    /* the tile's edges in NDC less the principal point (shift: 0 but for an off-centre pinhole) */
+    float u0 = (float)((t % tiles_x) * LTILE) / (float)width * 2.0f - (1.0f + shift_x);
+    float u1 = (float)min((t % tiles_x) * LTILE + LTILE, width) / (float)width * 2.0f - (1.0f + shift_x);
+    float v_top = (1.0f - shift_y) - (float)((t / tiles_x) * LTILE) / (float)height * 2.0f;
+    float v_bottom = (1.0f - shift_y) - (float)min((t / tiles_x) * LTILE + LTILE, height) / (float)height * 2.0f;
     TilePlanes p;
 #if ORTHO
     p.left = (float4)(1.0f, 0.0f, 0.0f, -u0 * tan_x);
@@ -163,7 +166,7 @@ static inline intV sphere_in_tile(const TilePlanes* p, float4 depth, floatV x, f
 
 #define CULL_ARGS global const float* sphere_x, global const float* sphere_y, global const float* sphere_z, \
     global const float* sphere_r, int n_padded, global const float4* tile_depth, int tiles_x, int tiles_y, \
-    int width, int height, float tan_x, float tan_y
+    int width, int height, float tan_x, float tan_y, float shift_x, float shift_y
 
 kernel void light_cull_count(CULL_ARGS, global int* tile_light_counts)
 {
@@ -172,7 +175,7 @@ kernel void light_cull_count(CULL_ARGS, global int* tile_light_counts)
     float4 depth = tile_depth[t];
     int count = 0;
     if (depth.x <= depth.y) {
-        TilePlanes p = tile_planes(t, tiles_x, width, height, tan_x, tan_y);
+        TilePlanes p = tile_planes(t, tiles_x, width, height, tan_x, tan_y, shift_x, shift_y);
         for (int i = 0; i < n_padded; i += VEC) {
             intV hit = sphere_in_tile(&p, depth, vloadV(0, sphere_x + i), vloadV(0, sphere_y + i),
                                       vloadV(0, sphere_z + i), vloadV(0, sphere_r + i));
@@ -200,7 +203,7 @@ kernel void light_cull_fill(CULL_ARGS, global const int* tile_light_offsets, int
     if (t >= tiles_x * tiles_y) return;
     float4 depth = tile_depth[t];
     if (!(depth.x <= depth.y)) return;
-    TilePlanes p = tile_planes(t, tiles_x, width, height, tan_x, tan_y);
+    TilePlanes p = tile_planes(t, tiles_x, width, height, tan_x, tan_y, shift_x, shift_y);
     int slot = tile_light_offsets[t];
     for (int i = 0; i < n_padded; i += VEC) {
         intV hit = sphere_in_tile(&p, depth, vloadV(0, sphere_x + i), vloadV(0, sphere_y + i),

@@ -9,7 +9,8 @@
  *     sphere seen along the other axis is a disk of centre (c, D) (lateral offset, view depth
  *     D = -z) and radius r, and the rectangle's sides are the planes through the eye touching
  *     it (axis_slopes below): slopes s = (c·t ± D·r)/(D·t ∓ c·r), t = sqrt(c² + D² - r²), the
- *     roots of (D² - r²)s² - 2cDs + c² - r² = 0; pixel x = (s/tan_x + 1)·W/2, y = (1 - s/tan_y)·H/2.
+ *     roots of (D² - r²)s² - 2cDs + c² - r² = 0; pixel x = (s/tan_x + ox + 1)·W/2,
+ *     y = (1 - oy - s/tan_y)·H/2, (ox, oy) the principal point in NDC (0 but for a pinhole K).
  *     A sphere that crosses the near plane is clipped by it first (Mara & McGuire 2013): a
  *     tangent point in front of the near plane gives way to the end of the disk's chord on it,
  *     so a sphere that holds the eye covers the whole screen and one beside the camera only
@@ -74,7 +75,8 @@ static inline int2 pixel_range(float lo, float hi, int n)
 
 kernel void light_quad_rects(global const float* sphere_x, global const float* sphere_y,
                              global const float* sphere_z, global const float* sphere_r, int n_padded,
-                             int width, int height, float tan_x, float tan_y, float near, float far,
+                             int width, int height, float tan_x, float tan_y, float shift_x, float shift_y,
+                             float near, float far,
                              float eye_distance, int tiles_x, int tiles_y,
                              global float* quad_rect, global int* quad_tiles)
 {
@@ -90,8 +92,10 @@ kernel void light_quad_rects(global const float* sphere_x, global const float* s
 #else
             const float2 sx = axis_slopes(cx, D, r, near), sy = axis_slopes(cy, D, r, near);
 #endif
-            rect = (float4)((sx.x / tan_x + 1.0f) * 0.5f * (float)width, (1.0f - sy.y / tan_y) * 0.5f * (float)height,
-                            (sx.y / tan_x + 1.0f) * 0.5f * (float)width, (1.0f - sy.x / tan_y) * 0.5f * (float)height);
+            rect = (float4)((sx.x / tan_x + (1.0f + shift_x)) * 0.5f * (float)width,
+                            ((1.0f - shift_y) - sy.y / tan_y) * 0.5f * (float)height,
+                            (sx.y / tan_x + (1.0f + shift_x)) * 0.5f * (float)width,
+                            ((1.0f - shift_y) - sy.x / tan_y) * 0.5f * (float)height);
         }
     }
     quad_rect[i] = rect.x;

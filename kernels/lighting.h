@@ -93,8 +93,9 @@ static inline void store_plane(global float* plane, int p0, int valid, floatV v)
 }
 
 /* The view rays through the run's pixel centres (px0 + lane, py) and the world positions at
- * view depth `depth` on them (report II.3, "Question du Z"): dir = F + x·R·tan_x + y·U·tan_y
- * (camera = eye, F, R·tan_x, U·tan_y as float4 each), P = eye + depth·dir. shade.cl and
+ * view depth `depth` on them (report II.3, "Question du Z"): dir = F + (x - ox)·R·tan_x +
+ * (y - oy)·U·tan_y (camera = (eye, ox), (F, oy), R·tan_x, U·tan_y as float4 each; (ox, oy) the
+ * principal point in NDC, 0 but for an off-centre pinhole camera), P = eye + depth·dir. shade.cl and
  * light_stencil.cl rebuild positions with this one function, so their light tests agree.
  * ORTHO (orthographic camera: tan_x, tan_y are the view box's half-extents, world units): the
  * rays are parallel, dir = F, from the eye plane: P = (eye + x·R·tan_x + y·U·tan_y) + depth·F. */
@@ -103,8 +104,8 @@ static inline void pixel_positions(global const float* camera, int width, int he
 {
     const float3 eye = vload4(0, camera).xyz, F = vload4(1, camera).xyz;
     const float3 Rs = vload4(2, camera).xyz, Us = vload4(3, camera).xyz;
-    floatV xn = (convert_floatV(px0 + LANES) + 0.5f) * (2.0f / (float)width) - 1.0f;
-    floatV yn = 1.0f - ((float)py + 0.5f) * (2.0f / (float)height);
+    floatV xn = (convert_floatV(px0 + LANES) + 0.5f) * (2.0f / (float)width) - (1.0f + camera[3]);
+    floatV yn = (1.0f - camera[7]) - ((float)py + 0.5f) * (2.0f / (float)height);
 #if ORTHO
     *dx = F.x; *dy = F.y; *dz = F.z;
     *px = (eye.x + xn * Rs.x + yn * Us.x) + depth * F.x;

@@ -10,8 +10,9 @@
  * peel_layers >= the largest fragment count the result equals the A-buffer bit for bit.
  *
  * Buffers: layer_depth float[W·H], layer_prim int[W·H] (-1: nothing at this layer);
- *          scene, camera and lights: FORWARD_PARAMS; layers float[6][W·H] (abuffer.cl's layout:
- *          colour planes, transmittance, refraction offset), read (layer > 0) and written.
+ *          scene, camera and lights: FORWARD_PARAMS; layers float[7][W·H] (abuffer.cl's layout:
+ *          colour planes, transmittance, refraction offset, nearest triangle id), read (layer > 0)
+ *          and written; layer 0 sets the nearest triangle.
  * Work-groups: 2-D, any shape; VEC pixels of a row per work-item (vec.h), inside one light
  * tile. No barriers, no local memory.
  */
@@ -25,7 +26,7 @@ kernel void peel_shade(global const float* layer_depth, global const int* layer_
     if (px0 >= width || py >= height) return;
     const int npix = width * height;
     floatV ar = 0.0f, ag = 0.0f, ab = 0.0f, t = 1.0f, ox = 0.0f, oy = 0.0f, z = 1.0f;
-    intV pi = -1;
+    intV pi = -1, nearest = -1;
     for (int l = 0; l < VEC && px0 + l < width; ++l) {
         const int q = py * width + px0 + l;
         LANE_I(pi, l) = layer_prim[q];
@@ -37,6 +38,7 @@ kernel void peel_shade(global const float* layer_depth, global const int* layer_
             LANE_F(t, l) = layers[3 * npix + q];
             LANE_F(ox, l) = layers[4 * npix + q];
             LANE_F(oy, l) = layers[5 * npix + q];
+            LANE_I(nearest, l) = as_int(layers[6 * npix + q]);
         }
     }
     const intV active = (pi >= 0) & (t >= TRANSMITTANCE_EPSILON);
@@ -46,11 +48,13 @@ kernel void peel_shade(global const float* layer_depth, global const int* layer_
         if (layer == 0) {
             ox = select((floatV)0.0f, fr.ox, active);
             oy = select((floatV)0.0f, fr.oy, active);
+            for (int l = 0; l < VEC; ++l)
+                if (LANE_I(active, l)) LANE_I(nearest, l) = f.scene.prims[LANE_I(pi, l)].tri;
         }
         blend_under(fr, active, &ar, &ag, &ab, &t);
     } else if (layer > 0) {
         return;                          /* nothing peeled here: the layers stay as they are */
     }
     for (int l = 0; l < VEC && px0 + l < width; ++l)
-        store_layers(layers, npix, py * width + px0 + l, l, ar, ag, ab, t, ox, oy);
+        store_layers(layers, npix, py * width + px0 + l, l, ar, ag, ab, t, ox, oy, nearest);
 }

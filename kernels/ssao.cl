@@ -110,14 +110,16 @@ void ssao(global const uint* gbuffer, int width, int height, float far, global c
         floatV tx = 1.0f + sgn * nx * nx * a, ty = sgn * b, tz = -sgn * nx;
         floatV bx = b, by = sgn + ny * ny * a, bz = -ny;
 
-        /* P on the pixel's view ray at its depth; pixel centre x maps to x·(2/W)·tan_x - tan_x. */
+        /* P on the pixel's view ray at its depth; pixel centre x maps to x·(2/W)·tan_x - tan_x, less
+         * the principal point (ox, oy in NDC: camera[3], camera[7]; lighting.h pixel_positions). */
         const float kx = 2.0f * tan_x / (float)width, ky = 2.0f * tan_y / (float)height;
+        const float ox = camera[3], oy = camera[7];
 #if ORTHO
-        floatV px_ = (convert_floatV(px0 + LANES) + 0.5f) * kx - tan_x;
-        floatV py_ = (floatV)(tan_y - ((float)py + 0.5f) * ky);
+        floatV px_ = (convert_floatV(px0 + LANES) + 0.5f) * kx - tan_x * (1.0f + ox);
+        floatV py_ = (floatV)(tan_y * (1.0f - oy) - ((float)py + 0.5f) * ky);
 #else
-        floatV px_ = depth * ((convert_floatV(px0 + LANES) + 0.5f) * kx - tan_x);
-        floatV py_ = depth * (tan_y - ((float)py + 0.5f) * ky);
+        floatV px_ = depth * ((convert_floatV(px0 + LANES) + 0.5f) * kx - tan_x * (1.0f + ox));
+        floatV py_ = depth * (tan_y * (1.0f - oy) - ((float)py + 0.5f) * ky);
 #endif
         floatV pz_ = depth;
 
@@ -128,6 +130,7 @@ void ssao(global const uint* gbuffer, int width, int height, float far, global c
         const float inv_r2 = 1.0f / (radius * radius);
         const float half_w = 0.5f * (float)width, half_h = 0.5f * (float)height;
         const float to_px_x = half_w / tan_x, to_px_y = half_h / tan_y;
+        const float centre_x = half_w * (1.0f + ox), centre_y = half_h * (1.0f - oy);  /* principal point, px */
 
         floatV occlusion = 0.0f;
         for (int k = 0; k < SSAO_DIRECTIONS; ++k) {
@@ -139,12 +142,12 @@ void ssao(global const uint* gbuffer, int width, int height, float far, global c
                 floatV dist = radius * (((float)j + jitter) * (1.0f / SSAO_STEPS));
                 floatV z = pz_ + dist * dz;
 #if ORTHO
-                floatV fxp = (px_ + dist * dx) * to_px_x + half_w;
-                floatV fyp = half_h - (py_ + dist * dy) * to_px_y;
+                floatV fxp = (px_ + dist * dx) * to_px_x + centre_x;
+                floatV fyp = centre_y - (py_ + dist * dy) * to_px_y;
 #else
                 floatV inv_z = 1.0f / z;
-                floatV fxp = (px_ + dist * dx) * inv_z * to_px_x + half_w;
-                floatV fyp = half_h - (py_ + dist * dy) * inv_z * to_px_y;
+                floatV fxp = (px_ + dist * dx) * inv_z * to_px_x + centre_x;
+                floatV fyp = centre_y - (py_ + dist * dy) * inv_z * to_px_y;
 #endif
                 intV inside = fg & (z > 0.0f) & (fxp >= 0.0f) & (fxp < (float)width)
                               & (fyp >= 0.0f) & (fyp < (float)height);
@@ -156,11 +159,11 @@ void ssao(global const uint* gbuffer, int width, int height, float far, global c
                 inside &= isfinite(dq);
                 dq = select((floatV)0.0f, dq, inside);
 #if ORTHO
-                floatV hx = ((convert_floatV(ix) + 0.5f) * kx - tan_x) - px_;
-                floatV hy = (tan_y - (convert_floatV(iy) + 0.5f) * ky) - py_;
+                floatV hx = ((convert_floatV(ix) + 0.5f) * kx - tan_x * (1.0f + ox)) - px_;
+                floatV hy = (tan_y * (1.0f - oy) - (convert_floatV(iy) + 0.5f) * ky) - py_;
 #else
-                floatV hx = dq * ((convert_floatV(ix) + 0.5f) * kx - tan_x) - px_;
-                floatV hy = dq * (tan_y - (convert_floatV(iy) + 0.5f) * ky) - py_;
+                floatV hx = dq * ((convert_floatV(ix) + 0.5f) * kx - tan_x * (1.0f + ox)) - px_;
+                floatV hy = dq * (tan_y * (1.0f - oy) - (convert_floatV(iy) + 0.5f) * ky) - py_;
 #endif
                 floatV hz = dq - pz_;
                 floatV h2 = hx * hx + hy * hy + hz * hz;

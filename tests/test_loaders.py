@@ -356,7 +356,7 @@ def test_demo_toml():
     crate_mat = scene.materials[len(gltf.materials)]
     assert crate_mat.name == "crate" and crate_mat.base_color_texture == len(gltf.textures)
     np.testing.assert_array_equal(scene.textures[crate_mat.base_color_texture].rgba, demo.crate_texture())
-    assert scene.mesh_names[-2:] == ["crate.obj:crate/crate", "crate.obj:crate_top/crate_top"]
+    assert scene.mesh_names[-2:] == ["crate.obj:crate/crate", "crate.obj:crate/crate_top"]   # o group/material
 
 
 def test_demo_crate_obj():

@@ -157,6 +157,13 @@ def test_ssao_kernels(device, capfd):
     assert fg.all() and raw.ao.min() < 0.8 and raw.ao.max() == 1.0
     np.testing.assert_allclose(blurred.ao, bilateral_blur(raw.ao, raw.linear_depth), rtol=0, atol=2e-6)
     assert {"ssao_ms", "ssao_blur_ms"} <= set(blurred.stats)
+    # an off-centre pinhole (Camera.from_opencv): SSAO's and the light culling's shifted frustum
+    K, R, t = cam.to_opencv(21, 13)
+    K[0, 2] += 6.0
+    K[1, 2] -= 3.0
+    shifted = clrender.Renderer(21, 13, device=device.id, ssao=True, ssao_blur=False, light_tile_size=8).render(
+        scene, Camera.from_opencv(K, R, t, 21, 13, near=0.1, far=50))
+    assert (shifted.triangle_id >= 0).all() and shifted.ao.min() < 0.8 and np.isfinite(shifted.position).all()
     assert_no_device_diagnostics(capfd)
 
 
@@ -272,6 +279,9 @@ def test_abuffer_kernels(device, capfd):
     assert frame.stats["retries"] >= 1, "the A-buffer must have grown"
     assert frame.shadow.shape == (TH, TW, 1) and frame.shadow[6, 6, 0] < 0.05, "the layers shadow the wall"
     assert_transparency_matches(frame, exp, ok, "A-buffer")
+    blend = np.array([m.alpha_mode == "BLEND" for m in scene.materials])
+    front = exp.fragment_count > 0                       # the nearest-fragment rule of the ids
+    assert blend[frame.material_id[front]].all() and not blend[frame.material_id[~front & (frame.material_id >= 0)]].any()
     unshadowed, _ = transparency_expected(frame, scene, shadows=False)
     assert np.abs(unshadowed.color - exp.color)[ok].max() > 0.05 * exp.color.max(), \
         "the spot's shadows must matter in the comparison"

@@ -116,8 +116,11 @@ def world_piece(name: str, matrix, positions, faces, material: int, normals=None
 # -- assembling ----------------------------------------------------------------------------------
 def assemble(pieces: Sequence[Piece], materials: list[Material],
              textures: "list[Texture] | Callable[[], list[Texture]]", source: str,
-             camera: Optional[Camera] = None, settings: Optional[dict] = None) -> Scene:
+             camera: Optional[Camera] = None, settings: Optional[dict] = None, objects: Optional[list] = None,
+             piece_object: Optional[Sequence[int]] = None) -> Scene:
     """Concatenate pieces (in order) into one Scene; normals are computed where a piece has none.
+    `objects` (SceneObject) and `piece_object` (each piece's index into them): the drawn instances
+    (Scene.objects); None: one object per piece.
     `textures`: a list, or a callable returning it, called last (images decoding in the background
     while the pieces are put together: load_materials in gltf_materials.py).
 
@@ -205,6 +208,8 @@ def assemble(pieces: Sequence[Piece], materials: list[Material],
         colors=cat(colors, (0, 4), np.float32) if want_colors else None,
         tangents=cat(tangents, (0, 4), np.float32) if want_tangents else None,
         extra_uvs=extra_uvs,
+        objects=list(objects or []),
+        mesh_object=None if piece_object is None else np.asarray(piece_object, np.int32).reshape(-1),
     )
 
 

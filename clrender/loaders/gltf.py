@@ -69,7 +69,7 @@ import numpy as np
 from .. import animation as gltf_animation
 from .. import structs
 from ..camera import Camera
-from ..scene import Material, Scene, SceneError
+from ..scene import Material, Scene, SceneError, SceneObject
 from ..deform import Deformation
 from ..scene import vertex_normals
 from ..tangents import generate_tangents
@@ -298,6 +298,25 @@ def load_gltf(path) -> Scene:
     return scene
 
 
+def _node_paths(nodes_json: list) -> dict:
+    """Node index -> "root/…/node" of node names (unnamed: node<i>); a node has at most one parent
+    (the document checks it)."""
+    parent = {c: n for n, node in enumerate(nodes_json) for c in node.get("children", [])}
+    names = [node.get("name") or f"node{n}" for n, node in enumerate(nodes_json)]
+    paths: dict = {}
+
+    def path(n: int) -> str:
+        if n not in paths:
+            chain, seen = [n], {n}
+            while chain[-1] in parent and parent[chain[-1]] not in seen:
+                seen.add(parent[chain[-1]])
+                chain.append(parent[chain[-1]])
+            paths[n] = "/".join(names[i] for i in reversed(chain))
+        return paths[n]
+
+    return {n: path(n) for n in range(len(nodes_json))}
+
+
 def _geometry(doc: Document, path: Path, order: list[int], features: dict, notes: dict, materials: list,
               textures) -> Scene:
     """The Scene: mesh nodes' primitives, camera, animation and deformation (textures() waited for last)."""
@@ -309,6 +328,9 @@ def _geometry(doc: Document, path: Path, order: list[int], features: dict, notes
     nodes_json, meshes_json = doc.list("nodes"), doc.list("meshes")
     default_material = None
     pieces: list[Piece] = []
+    objects: list[SceneObject] = []     # one per node that draws a primitive
+    piece_object: list[int] = []
+    paths = _node_paths(nodes_json)
     for n in order:
         node = nodes_json[n]
         if "mesh" not in node:
@@ -318,6 +340,7 @@ def _geometry(doc: Document, path: Path, order: list[int], features: dict, notes
         prims = mesh["primitives"]
         node_name = node.get("name") or f"node{n}"
         mesh_name = mesh.get("name") or f"mesh{mi}"
+        first_piece = len(pieces)
         for p, prim in enumerate(prims):
             mode = prim.get("mode", MODE_TRIANGLES)
             what = f"mesh {mi} ({mesh_name!r}) primitive {p}"
@@ -373,6 +396,9 @@ def _geometry(doc: Document, path: Path, order: list[int], features: dict, notes
                 matrix = animation.add_mesh(len(pieces), n, matrix)
             pieces.append(world_piece(name, matrix, positions, faces, mat, normals, uvs, colors, tangents,
                                       extra_uvs, tangent_uv))
+        if len(pieces) > first_piece:
+            piece_object.extend([len(objects)] * (len(pieces) - first_piece))
+            objects.append(SceneObject(node_name, mesh_name, paths[n], node.get("extras"), n))
 
     deformation = None
     if deformers:               # the load pose (rest transforms, default weights) into the pieces
@@ -383,7 +409,7 @@ def _geometry(doc: Document, path: Path, order: list[int], features: dict, notes
             old = pieces[d.mesh]
             pieces[d.mesh] = Piece(old.name, p, old.faces, old.material, nrm, old.uvs, old.colors, tan,
                                    old.extra_uvs)
-    scene = assemble(pieces, materials, textures, str(path))
+    scene = assemble(pieces, materials, textures, str(path), objects=objects, piece_object=piece_object)
     if deformation is not None:
         firsts = np.cumsum([0] + [len(p.positions) for p in pieces])
         deformation.attach({d.mesh: firsts[d.mesh] for d in deformers})

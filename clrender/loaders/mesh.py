@@ -20,7 +20,7 @@ from typing import Optional
 
 import numpy as np
 
-from ..scene import Material, Scene, Texture
+from ..scene import Material, Scene, SceneObject, Texture
 from .common import (Piece, assemble, check_faces, decode_image, fail, flip_v, load_images,
                      trimesh_load, trimesh_vertex_normals, world_piece)
 
@@ -214,7 +214,9 @@ def load_obj(path) -> Scene:
     if unknown:
         warnings.warn(f"{path}: usemtl names not defined in any material library: {unknown}", stacklevel=2)
 
-    tm_scene = trimesh_load(str(path), process=False, file_type="obj")
+    # o/g groups are the file's objects (Scene.objects): trimesh then splits per (group, material)
+    grouped = re.search(r"^[og][ \t]+\S", text, re.M) is not None
+    tm_scene = trimesh_load(str(path), process=False, file_type="obj", split_objects=grouped, split_groups=grouped)
     geoms = _trimesh_geometries(tm_scene)
     default = None
     keyed = []
@@ -233,13 +235,26 @@ def load_obj(path) -> Scene:
         keyed.append(((order, rank), (gnode, matrix, gname, geom, mat)))
     keyed.sort(key=lambda item: item[0])
 
-    pieces = []
+    pieces, objects, piece_object, object_index = [], [], [], {}
     for _, (gnode, matrix, gname, geom, mat) in keyed:
         faces = np.asarray(geom.faces, np.int64)
         check_faces(faces, len(geom.vertices), path, f"geometry {gname!r}")
-        pieces.append(world_piece(f"{gnode}/{gname}", matrix, geom.vertices, faces, mat,
-                                  trimesh_vertex_normals(geom), _uv(geom)))
-    return assemble(pieces, materials, textures, str(path))
+        group, material = _obj_group(gname, geom) if grouped else (path.stem, None)
+        name = f"{group}/{material}" if material else f"{gnode}/{gname}"      # group/material, as loaded
+        pieces.append(world_piece(name, matrix, geom.vertices, faces, mat, trimesh_vertex_normals(geom), _uv(geom)))
+        if group not in object_index:
+            object_index[group] = len(objects)
+            objects.append(SceneObject(group, group, group))
+        piece_object.append(object_index[group])
+    return assemble(pieces, materials, textures, str(path), objects=objects, piece_object=piece_object)
+
+
+def _obj_group(gname: str, geom) -> tuple:
+    """(o/g group, material name or None) of a geometry trimesh split out, named "<group>_<material>"."""
+    material = getattr(getattr(geom.visual, "material", None), "name", None)
+    if material and gname.endswith("_" + material) and len(gname) > len(material) + 1:
+        return gname[: -len(material) - 1], material
+    return gname, None
 
 
 # -- PLY / STL ------------------------------------------------------------------------------------------

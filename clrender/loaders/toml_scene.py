@@ -9,6 +9,7 @@ name = "demo"                 # optional, prefixes the mesh names (default: the 
 transform = { translate = [0, 0, 0], rotate_deg = [0, 30, 0], scale = 1.0 }   # optional
 opacity = 0.5                 # optional, in [0, 1]: multiplies the opacity of every material of this mesh
 refraction = 0.05             # optional, >= 0: sets the refraction strength of every material of this mesh
+extras = { class = "chair" }  # optional table: the entry's object's extras (Scene.objects, Frame.object_id)
 
 [[material]]                  # any number: override materials of the mesh files by name
 name = "*curtain*"            # required: a material name as loaded (exact, or an fnmatch glob)
@@ -144,7 +145,7 @@ import numpy as np
 
 from .. import keyframes, structs
 from ..camera import Camera
-from ..scene import ALPHA_MODES, Material, Scene, SceneError, Sun
+from ..scene import ALPHA_MODES, Material, Scene, SceneError, SceneObject, Sun
 from .common import (concat_vertex_attributes, fail, shift_textures, transform_normals, transform_points,
                      transform_tangents)
 from .lights import (AUTO_RADIUS_KEY, DIRECTIONAL_KEY, auto_radius, refresh_auto_radii, scene_diagonal,
@@ -153,7 +154,7 @@ from .lights import (AUTO_RADIUS_KEY, DIRECTIONAL_KEY, auto_radius, refresh_auto
 TOP_LEVEL = {"mesh", "material", "camera", "render", "light", "lights", "ambient", "sun", "environment"}
 ENVIRONMENT_KEYS = {"source", "intensity", "rotation", "background"}
 SUN_KEYS = {"direction", "color", "intensity", "shadow", "shadow_map_size"}
-MESH_KEYS = {"path", "name", "transform", "opacity", "refraction"}
+MESH_KEYS = {"path", "name", "transform", "opacity", "refraction", "extras"}
 MATERIAL_KEYS = {"name", "opacity", "refraction", "alpha_mode", "alpha_cutoff"}
 TRANSFORM_KEYS = {"translate", "rotate_deg", "scale"}
 CAMERA_KEYS = {"eye", "target", "up", "fov_y_deg", "near", "far", "projection", "xmag", "ymag", "keys", "orbit"}
@@ -554,9 +555,11 @@ def _apply_materials(path, where: str, scene: Scene, mesh: dict, overrides: list
     scene.materials = materials
 
 
-def _concatenate(parts: list[tuple[str, Scene]], source: str) -> Scene:
+def _concatenate(parts: list[tuple[str, Scene]], source: str, extras: Optional[list] = None) -> Scene:
+    """The parts' scenes as one; each part (a [[mesh]] entry) is one object, with `extras[k]`."""
     positions, normals, uvs, triangles, tri_mat, tri_mesh, tri_face = [], [], [], [], [], [], []
     materials, textures, names = [], [], []
+    objects, mesh_object = [], []                 # one object per [[mesh]] entry
     lights, auto, directional = [], [], []
     v_off = l_off = 0
     for label, s in parts:
@@ -572,6 +575,9 @@ def _concatenate(parts: list[tuple[str, Scene]], source: str) -> Scene:
         textures.extend(s.textures)
         materials.extend(shift_textures(m, t_off) for m in s.materials)
         names.extend(f"{label}:{n}" for n in s.mesh_names)
+        mesh_object.extend([len(objects)] * len(s.mesh_names))
+        objects.append(SceneObject(label, s.mesh_names[0] if len(s.mesh_names) == 1 else label, label,
+                                   None if extras is None else extras[len(objects)]))
         positions.append(s.positions)
         normals.append(s.normals)
         uvs.append(s.uvs)
@@ -594,7 +600,8 @@ def _concatenate(parts: list[tuple[str, Scene]], source: str) -> Scene:
     return Scene(cat(positions, (0, 3), np.float32), cat(normals, (0, 3), np.float32), cat(uvs, (0, 2), np.float32),
                  cat(triangles, (0, 3), np.int32), cat(tri_mat, (0,), np.int32),
                  materials=materials or [Material()],
-                 textures=textures, mesh_names=names,
+                 textures=textures, mesh_names=names, objects=objects,
+                 mesh_object=np.asarray(mesh_object, np.int32),
                  triangle_mesh=cat(tri_mesh, (0,), np.int32), triangle_face=cat(tri_face, (0,), np.int32),
                  source=source, settings=settings,
                  lights=np.concatenate(lights) if lights else np.zeros(0, structs.light_dtype),
@@ -634,6 +641,7 @@ def load_toml(path) -> Scene:
     if not isinstance(meshes, list):
         raise fail(path, "mesh must be an array of tables ([[mesh]])")
     parts: list[tuple[str, Scene]] = []
+    part_extras: list = []
     for k, entry in enumerate(meshes):
         where = f"mesh[{k}]"
         entry = _table(path, where, entry)
@@ -650,6 +658,9 @@ def load_toml(path) -> Scene:
         label = entry.get("name", Path(rel).name)
         if not isinstance(label, str):
             raise fail(path, f"{where}.name must be a string")
+        if "extras" in entry and not isinstance(entry["extras"], dict):
+            raise fail(path, f"{where}.extras must be a table, got {entry['extras']!r}")
+        part_extras.append(entry.get("extras"))
         mesh_values = _material_values(path, where, entry)
         try:
             sub = load_scene(file, default_environment=False)
@@ -667,7 +678,7 @@ def load_toml(path) -> Scene:
             shown = ", ".join(map(repr, loaded[:12])) + (f", ... ({len(loaded)} in all)" if len(loaded) > 12 else "")
             raise fail(path, f"{where}: name {pattern!r} matches no material of the mesh files "
                              f"(loaded: {shown or 'none'})")
-    scene = _concatenate(parts, str(path))
+    scene = _concatenate(parts, str(path), part_extras)
     camera_track = None if camera is None or isinstance(camera, Camera) else camera
     if camera_track is not None:
         camera = camera_track.base       # a valid camera; posed at t = 0 below

@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from .base import Overflow, RenderPass, empty, round_up, scan_for, zeros
-from .forward import FORWARD_INPUTS, forward_args, forward_defines, forward_grid, forward_vec
+from .forward import FORWARD_INPUTS, LAYER_PLANES, forward_args, forward_defines, forward_grid, forward_vec
 from .fragments import walk_args, walk_global_size
 
 SORT_GROUP = (8, 8)
@@ -39,7 +39,7 @@ class AbufferPass(RenderPass):
     def allocate(self, width, height):
         n = width * height
         self.offsets = empty(self.queue, n, np.int32)
-        self.layers = empty(self.queue, 6 * n, np.float32)
+        self.layers = empty(self.queue, LAYER_PLANES * n, np.float32)
         if self.capacity < 2 * n:
             self._allocate_fragments(2 * n)
 

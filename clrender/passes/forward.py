@@ -8,6 +8,9 @@ from .. import capabilities
 from .ibl import ENV_OUTPUTS, env_kernel_args
 from .base import SCENE_INPUTS, round_up, scene_args, view_defines
 
+# The transparent layers' planes (forward.h store_layers): colour x3, transmittance, refraction
+# offset x, y, the nearest fragment's triangle id (int bits; Frame.object_id)
+LAYER_PLANES = 7
 FORWARD_INPUTS = ("prims",) + SCENE_INPUTS + ("camera_params", "ambient", "lights", "n_lights", "light_env") + ENV_OUTPUTS
 
 

@@ -45,7 +45,7 @@ class TileLightLists(RenderPass):
 
 class LightCullPass(TileLightLists):
     name = "light_cull"
-    inputs = ("lights", "n_lights", "gbuffer", "view_matrix", "tan_x", "tan_y")
+    inputs = ("lights", "n_lights", "gbuffer", "view_matrix", "tan_x", "tan_y", "shift_x", "shift_y")
 
     def __init__(self, device, config, ortho: bool = False):
         """ortho: an orthographic camera (light_cull.cl ORTHO: tile frusta are boxes)."""
@@ -89,7 +89,8 @@ class LightCullPass(TileLightLists):
                           np.int32(fragments), (res["t_range"] if fragments else self.tile_depth).data,
                           self.tile_depth.data)
         cull = (sx, sy, sz, sr, np.int32(n_padded), self.tile_depth.data, np.int32(self.tiles_x),
-                np.int32(self.tiles_y), np.int32(w), np.int32(h), np.float32(res["tan_x"]), np.float32(res["tan_y"]))
+                np.int32(self.tiles_y), np.int32(w), np.int32(h), np.float32(res["tan_x"]), np.float32(res["tan_y"]),
+                np.float32(res["shift_x"]), np.float32(res["shift_y"]))
         self.count_kernel(self.queue, gsize, lsize, *cull, self.counts.data)
         self.scan(self.counts, self.offsets, self.total, queue=self.queue)
         self.fill_kernel(self.queue, gsize, lsize, *cull, self.offsets.data, np.int32(self.list_capacity),

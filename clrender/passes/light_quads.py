@@ -14,7 +14,7 @@ from .light_cull import TileLightLists
 
 class LightQuadsPass(TileLightLists):
     name = "light_quads"
-    inputs = ("lights", "n_lights", "view_matrix", "tan_x", "tan_y", "near", "far", "camera")
+    inputs = ("lights", "n_lights", "view_matrix", "tan_x", "tan_y", "shift_x", "shift_y", "near", "far", "camera")
 
     def __init__(self, device, config, ortho: bool = False):
         """ortho: an orthographic camera (light_quads.cl ORTHO: a sphere's quad is its box)."""
@@ -57,7 +57,8 @@ class LightQuadsPass(TileLightLists):
                            res["view_matrix"].data, sx, sy, sz, sr)
         eye_distance = float(np.linalg.norm(np.asarray(res["camera"].eye, np.float64)))
         self.rect_kernel(self.queue, *light_grid, sx, sy, sz, sr, np.int32(n_padded), np.int32(w), np.int32(h),
-                         np.float32(res["tan_x"]), np.float32(res["tan_y"]), np.float32(res["near"]),
+                         np.float32(res["tan_x"]), np.float32(res["tan_y"]), np.float32(res["shift_x"]),
+                         np.float32(res["shift_y"]), np.float32(res["near"]),
                          np.float32(res["far"]), np.float32(eye_distance), np.int32(self.tiles_x),
                          np.int32(self.tiles_y), self.quad_rect.data, self.quad_tiles.data)
         tiles = (self.quad_tiles.data, np.int32(n_padded), np.int32(self.tiles_x), np.int32(self.tiles_y))

@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 
 from .base import RenderPass, empty
-from .forward import FORWARD_INPUTS, forward_args, forward_defines, forward_grid, forward_vec
+from .forward import FORWARD_INPUTS, LAYER_PLANES, forward_args, forward_defines, forward_grid, forward_vec
 from .fragments import walk_args, walk_global_size
 
 
@@ -28,7 +28,7 @@ class PeelPass(RenderPass):
         n = width * height
         self.layer_depth = empty(self.queue, n, np.float32)
         self.layer_prim = empty(self.queue, n, np.int32)
-        self.layers = empty(self.queue, 6 * n, np.float32)
+        self.layers = empty(self.queue, LAYER_PLANES * n, np.float32)
 
     def publish(self, res):
         res.buffers["layers"] = self.layers

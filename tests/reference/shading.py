@@ -65,6 +65,11 @@ def pixel_directions(camera, width: int, height: int) -> np.ndarray:
     _, right, up, forward = _camera_frame(camera)
     if is_ortho(camera):
         return np.broadcast_to(forward, (height, width, 3)).copy()
+    if getattr(camera, "intrinsics", None) is not None:     # a pinhole K: OpenCV's x/z, y/z of the centres
+        fx, fy, cx, cy = np.multiply(camera.intrinsics, (width, height, width, height))
+        xs = (np.arange(width) + 0.5 - cx) / fx
+        ys = (np.arange(height) + 0.5 - cy) / fy         # OpenCV y points down
+        return forward + xs[None, :, None] * right - ys[:, None, None] * up
     t = np.tan(np.radians(camera.fov_y_deg) / 2.0)
     aspect = width / height
     x_ndc = (np.arange(width) + 0.5) / width * 2.0 - 1.0

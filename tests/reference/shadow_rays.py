@@ -18,6 +18,11 @@ def world_positions(frame, camera) -> np.ndarray:
     xs = (np.arange(w) + 0.5) * (2.0 / w) - 1.0
     ys = 1.0 - (np.arange(h) + 0.5) * (2.0 / h)
     depth = np.where(np.isfinite(frame.depth), frame.depth, np.nan).astype(np.float64)
+    if getattr(camera, "intrinsics", None) is not None:     # a pinhole K: OpenCV's x/z, y/z of the centres
+        fx, fy, cx, cy = np.multiply(camera.intrinsics, (w, h, w, h))
+        xs, ys = (np.arange(w) + 0.5 - cx) / fx, (np.arange(h) + 0.5 - cy) / fy
+        rays = -back + xs[None, :, None] * right - ys[:, None, None] * up
+        return np.asarray(camera.eye) + depth[..., None] * rays
     if ortho:       # parallel rays from the eye plane
         origins = np.asarray(camera.eye) + xs[None, :, None] * right * tan_x + ys[:, None, None] * up * tan_y
         return origins - depth[..., None] * back
