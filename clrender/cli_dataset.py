@@ -18,7 +18,8 @@ import numpy as np
 from .aov_io import atomic_write
 from .batch import VERSION, FrameTask, Outputs, job_signature, scene_size
 from .cli import PROG, CLIError, _note, check_output_options, render_options
-from .cli_parser import AOVS, _finite_float, _fov, _positive_int, add_batch_options, add_render_options
+from .cli_parser import (AOVS, _finite_float, _fov, _positive_float, _positive_int, add_batch_options,
+                         add_render_options)
 from .dataset import (DEFAULT_ELEVATION_DEG, DEFAULT_FOV_DEG, FORMATS, LAYOUTS, export_documents, file_cameras,
                       layout_cameras, parse_documents, read_camera_file)
 from .dataset_outputs import PNG16_MAX, view_files
@@ -37,16 +38,6 @@ def _dataset_aovs(text: str) -> list[str]:
         raise argparse.ArgumentTypeError(f"unknown AOV {(unknown or [text])[0]!r} (available: {', '.join(AOVS)}; "
                                          f"or none)")
     return names
-
-
-def _positive_float(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        value = float("nan")
-    if not (value > 0 and math.isfinite(value)):
-        raise argparse.ArgumentTypeError(f"expected a positive number, got {text!r}")
-    return value
 
 
 def add_parser(sub) -> None:

@@ -6,7 +6,6 @@ from __future__ import annotations
 import argparse
 import math
 
-import numpy as np
 
 PROG = "clrender"
 ENV_DEBUG = "CLRENDER_DEBUG"
@@ -48,64 +47,26 @@ def _vec3(text: str) -> tuple[float, float, float]:
     return values
 
 
-def _positive_int(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}") from None
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}")
-    return value
+def _number(kind, accept, expected: str):
+    """An argparse type: `kind`(text) (int or float) that `accept` takes, else "expected <expected>"."""
+    def parse(text: str):
+        try:
+            value = kind(text)
+        except ValueError:
+            value = None
+        if value is None or not accept(value):
+            raise argparse.ArgumentTypeError(f"expected {expected}, got {text!r}")
+        return value
+    return parse
 
 
-def _non_negative_int(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected an integer >= 0, got {text!r}") from None
-    if value < 0:
-        raise argparse.ArgumentTypeError(f"expected an integer >= 0, got {text!r}")
-    return value
-
-
-def _fov(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        value = float("nan")
-    if not 0.0 < value < 180.0:
-        raise argparse.ArgumentTypeError(f"expected degrees in (0, 180), got {text!r}")
-    return value
-
-
-def _half_height(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        value = float("nan")
-    if not (value > 0.0 and np.isfinite(value)):
-        raise argparse.ArgumentTypeError(f"expected a positive half-height in world units, got {text!r}")
-    return value
-
-
-def _non_negative_float(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        value = float("nan")
-    if not (value >= 0.0 and math.isfinite(value)):
-        raise argparse.ArgumentTypeError(f"expected a finite number >= 0, got {text!r}")
-    return value
-
-
-def _finite_float(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        value = float("nan")
-    if not math.isfinite(value):
-        raise argparse.ArgumentTypeError(f"expected a finite number, got {text!r}")
-    return value
+_positive_int = _number(int, lambda v: v >= 1, "a positive integer")
+_non_negative_int = _number(int, lambda v: v >= 0, "an integer >= 0")
+_fov = _number(float, lambda v: 0.0 < v < 180.0, "degrees in (0, 180)")
+_half_height = _number(float, lambda v: 0.0 < v < math.inf, "a positive half-height in world units")
+_positive_float = _number(float, lambda v: 0.0 < v < math.inf, "a positive number")
+_non_negative_float = _number(float, lambda v: 0.0 <= v < math.inf, "a finite number >= 0")
+_finite_float = _number(float, math.isfinite, "a finite number")
 
 
 def _aov_list(text: str) -> list[str]:

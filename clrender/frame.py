@@ -268,7 +268,8 @@ class Frame:
 
     @cached_property
     def depth(self) -> np.ndarray:
-        """View-space depth (float32), +inf on background."""
+        """(H, W) float32 z-depth along the camera's optical axis (what OpenCV depth maps store; not
+        the distance to the eye), +inf on background; `linear_depth` is depth / far."""
         d = self._decode("linear_depth") * np.float32(self.far)
         return d.astype(np.float32)
 

@@ -8,7 +8,6 @@ expected ids never go through the loader's tables.
 from __future__ import annotations
 
 import json
-import struct
 
 import numpy as np
 import pytest
@@ -205,3 +204,18 @@ def test_aov_files_hold_the_ids_and_positions(shared_mesh, tmp_path):
     assert np.array_equal(np.load(tmp_path / "f.material_id.npy") >= 0, oid >= 0)
     for name in ("object_id", "material_id", "position", "sheet"):
         assert (tmp_path / f"f.{name}.png").stat().st_size > 100
+
+
+def test_position_is_an_exr_layer(shared_mesh, tmp_path):
+    pytest.importorskip("OpenEXR")
+    from clrender.aov_io import read_exr
+    from clrender.cli import main
+    scene, _, _ = shared_mesh
+    out = tmp_path / "f.png"
+    assert main(["render", scene.source, "-o", str(out), "--width", str(W), "--height", str(H),
+                 "--aov", "position,object_id", "--exr"]) == 0
+    layers = read_exr(tmp_path / "f.exr")
+    pos = np.load(tmp_path / "f.position.npy")
+    got = np.stack([layers[f"position.{c}"] for c in "XYZ"], -1)
+    assert np.array_equal(np.isnan(got), np.isnan(pos)) and np.array_equal(got[~np.isnan(got)], pos[~np.isnan(pos)])
+    assert not any(k.startswith("object_id") for k in layers), "integer AOVs stay out of the EXR"

@@ -140,6 +140,7 @@ import math
 import tomllib
 from dataclasses import replace
 from pathlib import Path
+from typing import Optional
 
 import numpy as np
 
