@@ -417,6 +417,7 @@ def cmd_info(args) -> int:
     scene = _load(args.scene)
     summary = scene.summary()
     summary["settings"] = scene.settings
+    summary["object_list"] = [dataclasses.asdict(o) for o in scene.objects]    # Frame.object_id's index
     from .gltf_info import empty_details, format_details, gltf_details, is_gltf
     gltf = is_gltf(path)
     summary.update(gltf_details(path) if gltf else empty_details())   # always present: [] unless glTF
@@ -430,6 +431,7 @@ def cmd_info(args) -> int:
         ("triangles", s["triangles"]),
         ("vertices", s["vertices"]),
         ("meshes", s["meshes"]),
+        ("objects", _objects_line(s["object_list"])),
         ("materials", f"{s['materials']} ({s['alpha_masked_materials']} alpha-masked, "
                       f"{s['transparent_materials']} transparent, {s['single_sided_materials']} single-sided)"),
         ("textures", s["textures"] if not s["texture_sizes"] else
@@ -451,6 +453,13 @@ def cmd_info(args) -> int:
     if gltf:
         print("\n".join(format_details(summary)))
     return 0
+
+
+def _objects_line(objects: list) -> str:
+    """The object count (Frame.object_id), the first names and how many carry extras."""
+    names = ", ".join(repr(o["name"]) for o in objects[:4]) + (", ..." if len(objects) > 4 else "")
+    extras = sum(o["extras"] is not None for o in objects)
+    return f"{len(objects)} ({names})" + (f", {extras} with extras" if extras else "") if objects else "0"
 
 
 def _json_default(obj):

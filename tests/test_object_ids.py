@@ -219,3 +219,14 @@ def test_position_is_an_exr_layer(shared_mesh, tmp_path):
     got = np.stack([layers[f"position.{c}"] for c in "XYZ"], -1)
     assert np.array_equal(np.isnan(got), np.isnan(pos)) and np.array_equal(got[~np.isnan(got)], pos[~np.isnan(pos)])
     assert not any(k.startswith("object_id") for k in layers), "integer AOVs stay out of the EXR"
+
+
+def test_info_lists_the_objects(shared_mesh, capsys):
+    from clrender.cli import main
+    scene, _, _ = shared_mesh
+    assert main(["info", scene.source]) == 0
+    assert "objects    2 ('A', 'B'), 1 with extras" in capsys.readouterr().out
+    assert main(["info", scene.source, "--json"]) == 0
+    listed = json.loads(capsys.readouterr().out)["object_list"]
+    assert listed == [{"name": "A", "mesh": "ball", "path": "Root/A", "extras": EXTRAS, "node": 1},
+                      {"name": "B", "mesh": "ball", "path": "Root/B", "extras": None, "node": 2}]
