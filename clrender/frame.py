@@ -332,7 +332,9 @@ class Frame:
     def position(self) -> np.ndarray:
         """(H, W, 3) float32 world-space position of the surface at each pixel centre, NaN on
         background: the camera's ray through the pixel centre (Camera.principal_offset honoured)
-        at `depth`, the z-depth along the optical axis (orthographic: parallel rays)."""
+        at `depth`, the z-depth along the optical axis (orthographic: parallel rays). With
+        supersampling the depth is the kept sample's (the one nearest the pixel centre), so on a
+        slope the point may sit up to half a sample spacing off the centre ray's hit."""
         if self.camera is None:
             raise ValueError("this Frame carries no camera (frames from Renderer.render do)")
         cam = self.camera
