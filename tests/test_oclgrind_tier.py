@@ -151,7 +151,8 @@ def test_ssao_kernels(device, capfd):
     scene = flat_scene([FLOOR, box((-6, 0, -6.5), (6, 4, -6)), box((-6.5, 0, -6.5), (-6, 4, 6)),
                         box((-4.5, 0, -5), (-3, 1.5, -3.5))], lights=True)
     cam = Camera.look_at((-1.0, 3.0, 0.0), (-5.0, 0.5, -5.0), fov_y_deg=60, near=0.1, far=50)
-    raw = clrender.Renderer(21, 13, device=device.id, ssao=True, ssao_blur=False).render(scene, cam)
+    raw_renderer = clrender.Renderer(21, 13, device=device.id, ssao=True, ssao_blur=False)
+    raw = raw_renderer.render(scene, cam)
     blurred = clrender.Renderer(21, 13, device=device.id, ssao=True).render(scene, cam)
     fg = raw.triangle_id >= 0
     assert fg.all() and raw.ao.min() < 0.8 and raw.ao.max() == 1.0
@@ -161,8 +162,7 @@ def test_ssao_kernels(device, capfd):
     K, R, t = cam.to_opencv(21, 13)
     K[0, 2] += 6.0
     K[1, 2] -= 3.0
-    shifted = clrender.Renderer(21, 13, device=device.id, ssao=True, ssao_blur=False, light_tile_size=8).render(
-        scene, Camera.from_opencv(K, R, t, 21, 13, near=0.1, far=50))
+    shifted = raw_renderer.render(scene, Camera.from_opencv(K, R, t, 21, 13, near=0.1, far=50))  # same programs
     assert (shifted.triangle_id >= 0).all() and shifted.ao.min() < 0.8 and np.isfinite(shifted.position).all()
     assert_no_device_diagnostics(capfd)
 
