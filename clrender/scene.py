@@ -8,8 +8,8 @@ the setup kernel, so ids stay stable).
 Objects (`Scene.objects`, what `Frame.object_id` indexes): one record per drawn instance. A glTF
 node with a mesh is one object (two nodes sharing a mesh are two), made of that mesh's
 primitives, which are the scene's meshes (`mesh_names`, pieces); an OBJ o/g group (a file
-without groups: the file), a PLY/STL file and a TOML [[mesh]] entry are one each. `mesh_object` maps each mesh to its object, so a triangle's
-object is mesh_object[triangle_mesh[t]].
+without groups: the file), a PLY/STL file and a TOML [[mesh]] entry are one each. `mesh_object`
+maps each mesh to its object, so a triangle's object is mesh_object[triangle_mesh[t]].
 """
 from __future__ import annotations
 
@@ -104,8 +104,9 @@ class Texture:
 @dataclass(frozen=True)
 class SceneObject:
     """One drawn instance: `name` (the glTF node's, the OBJ group's, the TOML entry's), the name
-    of the `mesh` it draws, its `path` from the root ("parent/child" node names for glTF) and
-    the glTF node's `extras` (any JSON value: semantic labels travel here), None elsewhere."""
+    of the `mesh` it draws, its `path` from the root ("parent/child" node names for glTF) and its
+    `extras`: the glTF node's (any JSON value: semantic labels travel here) or the TOML entry's
+    `extras` table; None elsewhere."""
     name: str
     mesh: str
     path: str
