@@ -29,6 +29,9 @@ VARIANTS = (
                                    light_buffer_precision="float16")),
     ("light_prepass msaa4", dict(pipeline="light_prepass", msaa=4)),
     ("light_indexed", dict(pipeline="light_indexed")),
+    # pass 1's visibility instead of the second raster (not the report's algorithm; same pixels)
+    ("light_prepass reuse", dict(pipeline="light_prepass", reuse_visibility=True)),
+    ("light_indexed reuse", dict(pipeline="light_indexed", reuse_visibility=True)),
 )
 
 

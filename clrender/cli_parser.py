@@ -124,6 +124,9 @@ def add_render_options(p) -> None:
                         "light (default rgb)")
     p.add_argument("--light-buffer-precision", choices=LIGHT_BUFFER_PRECISION,
                    help="with --pipeline light_prepass: light buffer of floats or halves (default float32)")
+    p.add_argument("--reuse-visibility", action="store_true", default=None,
+                   help="with --pipeline light_prepass or light_indexed: read the first pass's visibility "
+                        "instead of rasterizing again (same pixels; not the report's algorithm; default off)")
     p.add_argument("--tonemap", choices=("reinhard", "aces", "clamp"), help="tone-mapping operator (default reinhard)")
     p.add_argument("--exposure", type=float, metavar="X", help="exposure multiplier before tone mapping (default 1)")
     p.add_argument("--ssao", action="store_true", default=None, help="screen-space ambient occlusion (default off)")

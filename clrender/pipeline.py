@@ -127,19 +127,20 @@ class Pipeline:
         """From the light lists to the colour (docs/variants.md). deferred: shading from the
         G-buffer. light_prepass: the light buffer from the thin G-buffer, the geometry again
         (at the msaa sub-samples), the material pass. light_indexed: the raster again, then
-        forward shading of the visible fragments with their tile's lights."""
+        forward shading of the visible fragments with their tile's lights. reuse_visibility: no second
+        raster, the passes read pass 1's visibility buffer (which nothing writes in between)."""
         view = {"ortho": self.ortho}
         if config.pipeline == "deferred":
             return [ShadePass(device, config, **view)]
         from .passes.second_geometry import RasterAgainPass, SampleGeometryPass
-        again = (RasterAgainPass(device, config, self.raster, **view) if config.msaa == 1 else
-                 SampleGeometryPass(device, config, config.msaa, self.select, **view))
+        again = ([] if config.reuse_visibility else [RasterAgainPass(device, config, self.raster, **view)]
+                 if config.msaa == 1 else [SampleGeometryPass(device, config, config.msaa, self.select, **view)])
         if config.pipeline == "light_prepass":
             from .passes.light_buffer import LightBufferPass
             from .passes.material import MaterialPass
-            return [LightBufferPass(device, config, **view), again, MaterialPass(device, config, config.msaa, **view)]
+            return [LightBufferPass(device, config, **view), *again, MaterialPass(device, config, config.msaa, **view)]
         from .passes.forward_shade import ForwardShadePass
-        return [again, ForwardShadePass(device, config, **view)]
+        return [*again, ForwardShadePass(device, config, **view)]
 
     @staticmethod
     def _post_passes(device, config) -> list:
@@ -306,7 +307,8 @@ class Pipeline:
         stats["retries"] = retries
         stats["supersample"] = k
         stats["pipeline"] = self.config.pipeline
-        stats["geometry_passes"] = 1 if self.config.pipeline == "deferred" else 1 + self.config.msaa
+        stats["geometry_passes"] = 1 if self.config.pipeline == "deferred" or self.config.reuse_visibility else \
+            1 + self.config.msaa
         from .memory import pixel_buffers
         stats["bytes_per_pixel"] = pixel_buffers(self.config)
         stats.update(self._fragment_stats(readback, transparent))

@@ -42,6 +42,9 @@ class RenderConfig:
     msaa: int = 1              # light_prepass: colour sub-samples per pixel (1, 2, 4, 8; D3D standard patterns)
     light_buffer_specular: str = "rgb"       # light_prepass: "rgb" or "luminance" (the classic LPP trade-off)
     light_buffer_precision: str = "float32"  # light_prepass: "float32" or "float16" light buffer
+    reuse_visibility: bool = False   # light_prepass / light_indexed (msaa 1): read pass 1's visibility buffer
+                                     # instead of rasterizing again (not the report's two geometry passes;
+                                     # the same pixels bit for bit: docs/variants.md)
     tile_size: int = 8         # raster tiles; bench.gbuffer on a 2-core AVX-512 CPU: 8 < 16 < 32 ms
     light_tile_size: int = 32  # light-culling tiles; bench.lights at 1024/4096 lights: 32 < 16 < 8 ms
     light_culling: str = "tiled"   # "brute_force", "quads", "stencil" (docs/light_accumulation.md)
@@ -129,6 +132,14 @@ class RenderConfig:
                                      f"pass), not {self.pipeline!r}" + (
                                          "; over-sampling (supersample) anti-aliases every pipeline"
                                          if name == "msaa" else ""))
+        if not isinstance(self.reuse_visibility, bool):
+            raise ValueError(f"reuse_visibility must be True or False, got {self.reuse_visibility!r}")
+        if self.reuse_visibility and self.pipeline == "deferred":
+            raise ValueError("reuse_visibility applies to pipeline='light_prepass' or 'light_indexed' (their second "
+                             "geometry pass); 'deferred' rasterizes once")
+        if self.reuse_visibility and self.msaa != 1:
+            raise ValueError(f"reuse_visibility reads pass 1's pixel-centre visibility; msaa={self.msaa} rasterizes "
+                             f"at sub-samples, which pass 1 never saw")
         if self.pipeline != "deferred" and self.light_culling not in ("tiled", "brute_force"):
             raise ValueError(f"light_culling={self.light_culling!r} is a light-accumulation variant of the deferred "
                              f"pipeline; pipeline={self.pipeline!r} takes 'tiled' or 'brute_force'")

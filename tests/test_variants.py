@@ -76,6 +76,24 @@ def test_demo_scene_every_pipeline(make_renderer, shadows):
         assert deferred.stats[key] == indexed.stats[key] == prepass.stats[key] > 0, key
 
 
+@pytest.mark.parametrize("pipeline", ["light_prepass", "light_indexed"])
+def test_reuse_visibility_is_bit_identical_without_the_second_raster(make_renderer, pipeline):
+    """reuse_visibility: pass 1's visibility buffer instead of the raster again (docs/variants.md):
+    the same frame bit for bit, one geometry pass, no raster_again kernel; with BLEND surfaces,
+    shadows and a moving camera (velocity) in the frame."""
+    scene = demo_scene()
+    previous = Camera.look_at((0.2, 1.7, 4.6), (0.0, 0.8, 0.0), (0, 1, 0), 60.0, near=0.1, far=30.0)
+    again = make_renderer(160, 96, pipeline=pipeline).render(scene, CAMERA, previous_camera=previous)
+    reused = make_renderer(160, 96, pipeline=pipeline, reuse_visibility=True).render(
+        scene, CAMERA, previous_camera=previous)
+    assert (again.triangle_id >= 0).mean() > 0.5 and again.color.max() > 0.1
+    assert_same(reused, again, f"{pipeline} reuse_visibility")
+    for name in ("velocity", "object_id", "material_id", "depth"):
+        np.testing.assert_array_equal(getattr(reused, name), getattr(again, name), err_msg=name)
+    assert "raster_again_ms" in again.stats and "raster_again_ms" not in reused.stats
+    assert again.stats["geometry_passes"] == 2 and reused.stats["geometry_passes"] == 1
+
+
 @settings(max_examples=8, **SETTINGS)
 @given(p=light_sets())
 def test_random_light_sets(make_renderer, p):
@@ -269,6 +287,9 @@ def test_sub_sample_visibility_matches_reference(device, samples):
     (dict(pipeline="light_indexed", light_buffer_specular="luminance"), "applies to pipeline='light_prepass'"),
     (dict(pipeline="light_prepass", light_buffer_precision="float8"), "light_buffer_precision must be"),
     (dict(pipeline="light_indexed", ssao=True), "never stores"),
+    (dict(reuse_visibility=True), "rasterizes once"),
+    (dict(pipeline="light_prepass", msaa=4, reuse_visibility=True), "sub-samples"),
+    (dict(pipeline="light_indexed", reuse_visibility=1), "True or False"),
 ])
 def test_bad_options(opts, message):
     with pytest.raises(ValueError, match=message):
@@ -293,3 +314,6 @@ def test_cli_and_toml_options(device, tmp_path, monkeypatch):
         "light_prepass", 4, "luminance", "float16")
     assert cli.main(["render", str(toml), "-o", str(tmp_path / "c.png"), "--device", device.id, "-q",
                      "--msaa", "4"]) != 0
+    assert cli.main(["render", str(toml), "-o", str(tmp_path / "d.png"), "--width", "32", "--height", "24",
+                     "--device", device.id, "-q", "--pipeline", "light_indexed", "--reuse-visibility"]) == 0
+    assert (configs[-1].pipeline, configs[-1].reuse_visibility) == ("light_indexed", True)
