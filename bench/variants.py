@@ -71,13 +71,20 @@ def main(argv=None) -> int:
         scene.lights = base.copy()
         scene.add_random_lights(count, seed=1, radius=(radius, radius), intensity=1.0)
         entry = {}
+        # Rounds of one frame per variant, interleaved: this machine drifts by 15 % over a minute,
+        # which blocks of repeats per variant turned into ratios that swapped between runs.
         for name, _ in variants:
-            r = renderers[name]
-            stats, walls, frame = time_renders(r, scene, camera, args.warmup, args.repeats)
-            med = medians(stats)
-            entry[name] = {"median": med, "wall_ms_median": statistics.median(walls), "walls_ms": walls,
-                           "bytes_per_pixel": frame.stats["bytes_per_pixel"]}
-            record["device"] = frame.stats["device"]
+            time_renders(renderers[name], scene, camera, args.warmup, 0)
+        runs = {name: ([], []) for name, _ in variants}
+        for _ in range(args.repeats):
+            for name, _ in variants:
+                stats, walls, frame = time_renders(renderers[name], scene, camera, 0, 1)
+                runs[name][0].extend(stats)
+                runs[name][1].extend(walls)
+        for name, (stats, walls) in runs.items():
+            entry[name] = {"median": medians(stats), "wall_ms_median": statistics.median(walls), "walls_ms": walls,
+                           "bytes_per_pixel": stats[-1]["bytes_per_pixel"]}
+            record["device"] = stats[-1]["device"]
         if peer is not None:
             peer.set_lights(scene.lights, scene.ambient)
             entry["opengl"] = {"median_ms": statistics.median(peer.time_frame(camera, repeats=args.repeats,
