@@ -7,7 +7,6 @@ view renders, and every view renders from the camera the reader parses from them
 """
 from __future__ import annotations
 
-import argparse
 import math
 import os
 import sys
@@ -18,7 +17,7 @@ import numpy as np
 from .aov_io import atomic_write
 from .batch import VERSION, FrameTask, Outputs, job_signature, scene_size
 from .cli import PROG, CLIError, _note, check_output_options, render_options
-from .cli_parser import (AOVS, _finite_float, _fov, _positive_float, _positive_int, add_batch_options,
+from .cli_parser import (_aov_list, _finite_float, _fov, _positive_float, _positive_int, add_batch_options,
                          add_render_options)
 from .dataset import (DEFAULT_ELEVATION_DEG, DEFAULT_FOV_DEG, FORMATS, LAYOUTS, export_documents, file_cameras,
                       layout_cameras, parse_documents, read_camera_file)
@@ -30,14 +29,8 @@ DEFAULT_AOVS = ("depth", "object_id")
 
 
 def _dataset_aovs(text: str) -> list[str]:
-    if text.strip().lower() == "none":
-        return []
-    names = list(dict.fromkeys(n.strip().lower() for n in text.split(",") if n.strip()))
-    unknown = [n for n in names if n not in AOVS]
-    if not names or unknown:
-        raise argparse.ArgumentTypeError(f"unknown AOV {(unknown or [text])[0]!r} (available: {', '.join(AOVS)}; "
-                                         f"or none)")
-    return names
+    """render's --aov list, or "none" (images only)."""
+    return [] if text.strip().lower() == "none" else _aov_list(text)
 
 
 def add_parser(sub) -> None:

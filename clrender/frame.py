@@ -167,9 +167,10 @@ class Frame:
     readback: Readback = field(default_factory=Readback, repr=False)
     triangle_gltf: Optional[np.ndarray] = field(default=None, repr=False)   # (T,) bool: the triangle's material
                                                                             # is shaded with the glTF BRDF
-    # Per-triangle tables the ids are derived from (object_id, material_id): the scene's arrays at
-    # render() (not copied; Scene.set_transform and pose replace neither)
-    triangle_object: Optional[np.ndarray] = field(default=None, repr=False)    # (T,) int32 into scene.objects
+    # Tables the ids are derived from (object_id, material_id): the scene's arrays at render() (not
+    # copied, nothing computed until an id is read; Scene.set_transform and pose replace none of them)
+    triangle_mesh: Optional[np.ndarray] = field(default=None, repr=False)      # (T,) int32 into scene.mesh_names
+    mesh_object: Optional[np.ndarray] = field(default=None, repr=False)        # (meshes,) int32 into scene.objects
     triangle_material: Optional[np.ndarray] = field(default=None, repr=False)  # (T,) int32 into scene.materials
     camera: Optional[object] = field(default=None, repr=False)               # the Camera rendered (position)
 
@@ -321,7 +322,8 @@ class Frame:
         first fragment in its (depth, triangle id) order, depth peeling's layer 0; screen-door
         draws BLEND surfaces into the G-buffer), else the G-buffer's `triangle_id`. Derived from
         those triangle ids through per-triangle tables: the G-buffer spends no bit on it."""
-        return self._per_triangle(self.triangle_object, "object")
+        mesh = self._per_triangle(self.triangle_mesh, "object")
+        return np.where(mesh >= 0, self.mesh_object[np.maximum(mesh, 0)], -1).astype(np.int32)
 
     @cached_property
     def material_id(self) -> np.ndarray:

@@ -330,8 +330,8 @@ class Renderer:
         stats["time"] = float(time)
         frame = Frame(width=self.width, height=self.height, far=float(camera.far), stats=stats,
                       tonemap=self.config.tonemap, exposure=float(self.config.exposure), readback=readback,
-                      triangle_gltf=self._triangle_gltf(scene, scene_res), triangle_object=scene.triangle_object,
-                      triangle_material=scene.triangle_material, camera=camera)
+                      triangle_gltf=self._triangle_gltf(scene, scene_res), triangle_mesh=scene.triangle_mesh,
+                      mesh_object=scene.mesh_object, triangle_material=scene.triangle_material, camera=camera)
         stats["wall_ms"] = (_time.perf_counter() - start) * 1e3      # what the caller waited for
         host = {"upload_ms": upload_ms, **stats["host"]}
         host["other_ms"] = max(stats["wall_ms"] - sum(host.values()), 0.0)
