@@ -109,6 +109,16 @@ def pixel_vector_width(dev: cl.Device) -> int:
     return width
 
 
+def shadow_tile_size(dev: cl.Device, config) -> int:
+    """Raster tile of the shadow maps: config.shadow_tile_size, else 32 on CPUs (a work-group of
+    32/VEC x 1 work-items walking whole tile columns: a 2048² map bins 16x fewer tile entries
+    than with 8-pixel tiles) and the camera's tile_size on GPUs (a pixel per work-item: 32² would
+    exceed most work-group limits)."""
+    if config.shadow_tile_size is not None:
+        return tile_size_for(dev, config.shadow_tile_size)
+    return 32 if pixel_vector_width(dev) > 1 else tile_size_for(dev, config.tile_size)
+
+
 def raster_vector_width(dev: cl.Device, tile: int) -> int:
     """A raster work-item's pixel run must fit in its tile row."""
     return min(pixel_vector_width(dev), tile)

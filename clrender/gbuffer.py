@@ -66,6 +66,16 @@ THIN_PLANES = ("depth", "normal_power", "velocity", "triangle_id")    # + emissi
 DEPTH_PLANES = ("depth", "triangle_id")
 
 
+def geometry_planes(config) -> tuple:
+    """The planes a pipeline's first geometry pass writes (docs/variants.md); the material or
+    forward pass writes the rest as AOVs. The light pre-pass with msaa > 1 writes the surface
+    planes in pass 1 too: its material pass sees sub-samples, not the pixel centre's surface."""
+    pipeline = getattr(config, "pipeline", "deferred")
+    if pipeline == "light_prepass":
+        return THIN_PLANES + (("albedo_spec", "emissive_occlusion") if config.msaa > 1 else ())
+    return {"deferred": PLANES, "light_indexed": DEPTH_PLANES}[pipeline]
+
+
 def plane_mask(planes) -> int:
     """GB_WRITE for kernels/gbuffer_pack.h: bit i set for plane i."""
     unknown = set(planes) - set(PLANES)

@@ -228,12 +228,12 @@ def _pipeline_buffers(px: int, tiles: int, config, scene) -> dict:
         out["shade.color"] = 0                              # the material pass owns the colour
         out["light_buffer"] = light_buffer_planes(config) * PRECISIONS[config.light_buffer_precision][0](
             0).itemsize * px
-        out["material.color+spread"] = 12 * px + (12 * px if config.msaa > 2 else 4)
-        if config.msaa > 1:                                 # a setup, binning and raster per sub-sample
+        out["material.color+spread"] = 12 * px + (12 * px if config.msaa > 1 else 4)
+        if config.msaa > 1:              # one setup and binning, a visibility buffer per sub-sample
             t = scene.triangle_count if scene is not None else 0
             prims = structs.prim_dtype.itemsize * max(1024, t + t // 8)
-            out["msaa_geometry"] = config.msaa * (8 * px + 12 * tiles + 4 * initial_list_capacity(tiles, t) + prims
-                                                  + _setup_per_triangle(t, config))
+            out["msaa_geometry"] = (4 * px * (config.msaa + 1) + 12 * tiles + 4 * initial_list_capacity(tiles, t)
+                                    + prims + _setup_per_triangle(t, config))
     return out
 
 
@@ -241,16 +241,14 @@ def pixel_buffers(config) -> dict:
     """Bytes per pixel of every per-pixel buffer a frame goes through, by role (Frame.stats
     "bytes_per_pixel"; docs/variants.md): what the pipeline variants trade against each other."""
     pipeline = getattr(config, "pipeline", "deferred")
-    planes = {"deferred": layout.PLANES, "light_prepass": layout.THIN_PLANES,
-              "light_indexed": layout.DEPTH_PLANES}[pipeline]
+    planes = layout.geometry_planes(config)
     out = {"visibility": 8, "gbuffer_geometry_pass": 4 * len(planes)}
     if pipeline == "light_prepass":
         from .passes.light_buffer import PRECISIONS, light_buffer_planes
         out["light_buffer"] = light_buffer_planes(config) * PRECISIONS[config.light_buffer_precision][0](0).itemsize
         if config.msaa > 1:
-            out["msaa_visibility"] = 8 * config.msaa
-            if config.msaa > 2:
-                out["msaa_resolve"] = 12
+            out["msaa_visibility"] = 4 * config.msaa + 4     # a prim index per sample, one depth scratch
+            out["msaa_resolve"] = 12
     out["gbuffer_aov_planes"] = 4 * (len(layout.PLANES) - len(planes))
     out["color"] = 12
     out["total"] = sum(out.values())

@@ -51,10 +51,6 @@ class _HostClock:
         now = _perf_counter()
         self.laps[phase] = self.laps.get(phase, 0.0) + (now - self.last) * 1e3
         self.last = now
-# The G-buffer planes each pipeline's first geometry pass writes (docs/variants.md).
-GEOMETRY_PLANES = {"deferred": layout.PLANES, "light_prepass": layout.THIN_PLANES,
-                   "light_indexed": layout.DEPTH_PLANES}
-
 
 class Pipeline:
     def __init__(self, device, config, ortho: bool = False):
@@ -71,7 +67,7 @@ class Pipeline:
         self.select = "opaque" if fragments else "dither"
         self.raster = RasterPass(device, config, **view)
         self.passes = [SetupPass(device, config, select=self.select, **view), BinningPass(device, config),
-                       self.raster, GBufferPass(device, config, planes=GEOMETRY_PLANES[config.pipeline], **view),
+                       self.raster, GBufferPass(device, config, planes=layout.geometry_planes(config), **view),
                        ParticlesPass(device, config)]
         self.transparency = []          # run only for scenes with BLEND triangles; allocated on first use
         if fragments:
@@ -307,8 +303,8 @@ class Pipeline:
         stats["retries"] = retries
         stats["supersample"] = k
         stats["pipeline"] = self.config.pipeline
-        stats["geometry_passes"] = 1 if self.config.pipeline == "deferred" or self.config.reuse_visibility else \
-            1 + self.config.msaa
+        # rasterizations of the scene: the second pass tests every msaa sample in one walk
+        stats["geometry_passes"] = 1 if self.config.pipeline == "deferred" or self.config.reuse_visibility else 2
         from .memory import pixel_buffers
         stats["bytes_per_pixel"] = pixel_buffers(self.config)
         stats.update(self._fragment_stats(readback, transparent))

@@ -47,6 +47,8 @@ class RenderConfig:
                                      # the same pixels bit for bit: docs/variants.md)
     tile_size: int = 8         # raster tiles; bench.gbuffer on a 2-core AVX-512 CPU: 8 < 16 < 32 ms
     light_tile_size: int = 32  # light-culling tiles; bench.lights at 1024/4096 lights: 32 < 16 < 8 ms
+    shadow_tile_size: Optional[int] = None   # shadow-map raster tiles (8, 16, 32); None: 32 on CPUs (bench.shadows:
+                                             # binning 117 -> 20 ms, raster 307 -> 262 ms vs 8), tile_size on GPUs
     light_culling: str = "tiled"   # "brute_force", "quads", "stencil" (docs/light_accumulation.md)
     light_depth_mask: bool = False   # Harada's 2.5D culling: 32 depth slices per tile
     tonemap: str = "reinhard"
@@ -90,6 +92,8 @@ class RenderConfig:
     def __post_init__(self):
         if self.tile_size not in TILE_SIZES:
             raise ValueError(f"tile_size must be one of {TILE_SIZES}, got {self.tile_size!r}")
+        if self.shadow_tile_size is not None and self.shadow_tile_size not in TILE_SIZES:
+            raise ValueError(f"shadow_tile_size must be None or one of {TILE_SIZES}, got {self.shadow_tile_size!r}")
         if self.light_tile_size not in TILE_SIZES:
             raise ValueError(f"light_tile_size must be one of {TILE_SIZES}, got {self.light_tile_size!r}")
         if self.light_culling not in LIGHT_CULLING:

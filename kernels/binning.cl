@@ -18,12 +18,14 @@
 #ifndef TILE
 #define TILE 16
 #endif
+#include "samples.h"     /* SAMPLES (1): bin for sample points up to SAMPLE_SPREAD from the pixel centres */
 
-/* Can any pixel center of tile (tx, ty) be inside edge k?  Conservative corner test. */
+/* Can any sample of tile (tx, ty) (a pixel center, moved by up to SAMPLE_SPREAD) be inside
+ * every edge?  Conservative corner test. */
 static bool tile_may_overlap(const Prim* p, int tx, int ty)
 {
-    long sx0 = (long)(tx * TILE) * 256 + 128, sx1 = sx0 + (long)(TILE - 1) * 256;
-    long sy0 = (long)(ty * TILE) * 256 + 128, sy1 = sy0 + (long)(TILE - 1) * 256;
+    long sx0 = (long)(tx * TILE) * 256 + 128 - SAMPLE_SPREAD, sx1 = sx0 + (long)(TILE - 1) * 256 + 2 * SAMPLE_SPREAD;
+    long sy0 = (long)(ty * TILE) * 256 + 128 - SAMPLE_SPREAD, sy1 = sy0 + (long)(TILE - 1) * 256 + 2 * SAMPLE_SPREAD;
     for (int k = 0; k < 3; ++k) {
         int k1 = (k + 1) % 3;
         long dx = p->x[k1] - p->x[k], dy = p->y[k1] - p->y[k];
@@ -35,11 +37,11 @@ static bool tile_may_overlap(const Prim* p, int tx, int ty)
     return true;
 }
 
-/* Tile range covered by the prim's pixel-center bounding box (inclusive). */
+/* Tile range covered by the prim's pixel-center bounding box, widened by SAMPLE_SPREAD (inclusive). */
 static int4 tile_range(const Prim* p, int width, int height)
 {
-    int min_x = min(min(p->x[0], p->x[1]), p->x[2]), max_x = max(max(p->x[0], p->x[1]), p->x[2]);
-    int min_y = min(min(p->y[0], p->y[1]), p->y[2]), max_y = max(max(p->y[0], p->y[1]), p->y[2]);
+    int min_x = min(min(p->x[0], p->x[1]), p->x[2]) - SAMPLE_SPREAD, max_x = max(max(p->x[0], p->x[1]), p->x[2]) + SAMPLE_SPREAD;
+    int min_y = min(min(p->y[0], p->y[1]), p->y[2]) - SAMPLE_SPREAD, max_y = max(max(p->y[0], p->y[1]), p->y[2]) + SAMPLE_SPREAD;
     int px0 = max((min_x - 128 + 255) >> 8, 0), px1 = min((max_x - 128) >> 8, width - 1);
     int py0 = max((min_y - 128 + 255) >> 8, 0), py1 = min((max_y - 128) >> 8, height - 1);
     return (int4)(px0 / TILE, py0 / TILE, px1 / TILE, py1 / TILE);

@@ -2,32 +2,36 @@
  * docs/variants.md): the second geometry pass's visible surfaces times the light buffer, with
  * the report's anti-aliasing on the colour (III.3) when the raster ran at several sub-samples.
  *
- * Algorithm: each work-item owns VEC consecutive pixels (vec.h, rows wrap as in gbuffer.cl).
- * One launch per sub-sample s of `samples` (the sample's own visibility buffer and prims: the
- * raster of setup.cl's sample-shifted geometry, docs/raster_contract.md §10). Per lane, the
- * sample's surface (surface_vec.h: base colour × texture, specular intensity) is quantized
- * exactly as the G-buffer stores it (8-bit sRGB albedo, 8-bit intensity: every pipeline shades
- * the same surface) and combined with the light buffer at the pixel:
+ * Algorithm: `material` evaluates sample 0 (or the only sample) at every pixel, VEC consecutive
+ * pixels per work-item (vec.h, rows wrap as in gbuffer.cl): the sample's surface (surface_vec.h:
+ * base colour × texture, specular intensity) is quantized exactly as the G-buffer stores it
+ * (8-bit sRGB albedo, 8-bit intensity: every pipeline shades the same surface) and combined
+ * with the light buffer at the pixel:
  *     c_s = albedo·(ambient·ao·occ + D) + s·S + e                       (SPECULAR_RGB 1)
  *     c_s = albedo·(ambient·ao·occ + D) + s·S_lum·D / lum(D) + e        (SPECULAR_RGB 0; 0 where lum(D) = 0)
  * with the material's occlusion occ and emission e (gbuffer_decode.h; unlit: c_s = albedo).
- * lum = (0.2126, 0.7152, 0.0722); background samples give 0. Like hardware multisampling, each
- * sample's surface is evaluated at the pixel centre (surface_at_offset, undoing the sample's
- * shift; outside its triangle on edge pixels, as without centroid sampling), so only coverage
- * is multisampled. Resolve, in sample order: color = c_0 at s = 0, the sum of c_s - c_0 in
- * `spread` after, color = c_0 + sum / samples at the last sample: a pixel covered by one
+ * lum = (0.2126, 0.7152, 0.0722); background samples give 0 (or the environment).
+ * With msaa, `material_samples` runs once per sub-sample s > 0 over the sample's visibility
+ * buffer; every sample's prims are one buffer (docs/raster_contract.md §10,
+ * clrender/passes/second_geometry.py). Like hardware multisampling, each sample's surface is
+ * evaluated at the pixel centre (outside its triangle on edge pixels, as without centroid
+ * sampling), so only coverage is multisampled, and a sample that sees sample 0's prim has
+ * c_s = c_0 bit for bit: only the other pixels (edges, 13 % of Sponza's per sample) are listed
+ * and evaluated, VEC at a time. Resolve, in sample order: color = c_0 at s = 0, spread = the sum
+ * of c_s - c_0, color = c_0 + spread / samples at the last sample: a pixel covered by one
  * surface keeps c_0 exactly.
- * When `write_aov` is set (s = 0; with one sample its surface is the pixel centre's), the albedo
- * and specular intensity plane and the emissive/occlusion plane of the G-buffer (AOVs) are written from it, with the same bits
- * as gbuffer.cl; with several samples the pass-1 surface fills it instead (aov_prim / aov_prims).
+ * `write_aov` (one sample, whose surface is the pixel centre's): the albedo/specular and the
+ * emissive/occlusion planes of the G-buffer, with the same bits as gbuffer.cl (with msaa pass 1
+ * writes them, clrender/gbuffer.py geometry_planes).
  *
- * Buffers: vis_prim int[W·H] (the sample's), prims Prim[*] (the sample's); aov_prim int[W·H] and
- *          aov_prims Prim[*] (pass 1's, read when write_aov == 2); scene buffers and textures
- *          (surface_vec.h); light_buf float or half [LB_PLANES][W·H]; ao float[W·H] (read if SSAO);
- *          srgb_lut float[256], srgb_encode float2[4096]. out: color float[3][W·H]; spread
- *          float[3][W·H] (samples > 2 only); gbuffer
- *          uint[GB_PLANES][W·H] (albedo/specular plane only).
- * Work-groups: 1-D, work-item i covers pixels [i·VEC, i·VEC + VEC); no barriers.
+ * Buffers: vis_prim int[W·H] (`material`), vis_prims int[samples][W·H] (`material_samples`;
+ *          plane s is sample s's), prims Prim[*];
+ *          scene buffers and textures (surface_vec.h); light_buf float or half [LB_PLANES][W·H];
+ *          ao float[W·H] (read if SSAO); srgb_lut float[256], srgb_encode float2[4096].
+ *          out: color float[3][W·H]; spread float[3][W·H] (samples > 1); gbuffer
+ *          uint[GB_PLANES][W·H] (the two surface planes only).
+ * Work-groups: 1-D; `material`: work-item i covers pixels [i·VEC, i·VEC + VEC);
+ * `material_samples`: [i·VEC·SAMPLE_RUNS, +VEC·SAMPLE_RUNS). No barriers.
  */
 #pragma OPENCL FP_CONTRACT OFF
 #include "structs.h"
@@ -62,73 +66,65 @@ typedef float lb_t;
 #define LB_LOAD1(plane, i) light_buf[(plane) * npix + (i)]
 #endif
 
-/* Light buffer plane `plane` at the run's pixels (lanes past npix read 0). */
-#define LB_RUN(out, plane)                                                       \
-    if (valid == VEC) {                                                          \
+/* Light buffer plane `plane` at the lanes' pixels: the run pix0 .. pix0 + valid - 1 when
+ * pix0 >= 0 (lanes past it read 0), else pixel pix per lane. */
+#define LB_AT(out, plane)                                                        \
+    if (pix0 >= 0 && valid == VEC) {                                             \
         out = LB_LOAD(plane, pix0);                                              \
     } else {                                                                     \
         out = 0.0f;                                                              \
-        for (int l = 0; l < valid; ++l) LANE_F(out, l) = LB_LOAD1(plane, pix0 + l); \
+        for (int l = 0; l < valid; ++l)                                          \
+            LANE_F(out, l) = LB_LOAD1(plane, pix0 >= 0 ? pix0 + l : LANE_I(pix, l)); \
     }
 
-kernel void material(global const int* vis_prim, int width, int height, SCENE_PARAMS(prims),
-                     constant float2* srgb_encode, global const lb_t* light_buf, float ambient, global const float* ao,
-                     int sample, int samples, int sample_x, int sample_y, int write_aov,
-                     global const float* camera, int has_env, int env_background, ENV_PARAMS,
-                     global const int* aov_prim, global const Prim* aov_prims, global float* color,
-                     global float* spread, global uint* gbuffer)
+typedef struct {
+    floatV r, g, b;            /* the sample's colour c_s (the environment on background lanes) */
+    uintV alb, eo;             /* its surface as the G-buffer packs it (albedo/specular, emissive/occlusion) */
+} MaterialSample;
+
+/* c_s for the lanes' prims pidx (fg: pidx >= 0) at pixels (px, py) = pix (see LB_AT). */
+static MaterialSample material_sample(const SceneV* scene, intV pidx, intV fg, intV px, intV py, intV pix,
+                                      int pix0, int valid, int npix, int width, int height,
+                                      global const lb_t* light_buf, float ambient, global const float* ao,
+                                      constant float2* srgb_encode, global const float* camera, int has_env,
+                                      int env_background, const EnvMaps* envmaps)
 {
-    const int npix = width * height;
-    const int pix0 = get_global_id(0) * VEC;
-    if (pix0 >= npix) return;
-    const int valid = min(VEC, npix - pix0);
-    intV px, py;
-    int cx = pix0 % width, cy = pix0 / width;
-    for (int l = 0; l < VEC; ++l) {
-        LANE_I(px, l) = cx; LANE_I(py, l) = cy;
-        if (++cx == width) { cx = 0; ++cy; }
-    }
-    const SceneV scene = SCENE_INIT(prims);
-
-    const intV pidx = as_intV(load_plane((global const uint*)vis_prim, pix0, valid, 0xffffffffu));
-    intV fg = pidx >= 0;
-#if VEC == 1
-    fg = fg ? 1 : 0;
-#endif
-    floatV cr = 0.0f, cg = 0.0f, cb = 0.0f;
-    uintV w_alb = 0u, w_eo = 0u;
-    const EnvMaps envmaps = ENV_INIT;
+    global const Material* materials = scene->materials;
+    constant float* srgb_lut = scene->srgb_lut;
+    MaterialSample c = { 0.0f, 0.0f, 0.0f, 0u, 0u };
     if (ANY(fg)) {
-        const SurfaceV sf = surface_at_offset(&scene, select((intV)0, pidx, fg), fg, px, py, -sample_x, -sample_y);
-        w_alb = (pack_srgb8x3V(sf.r, sf.g, sf.b, srgb_encode) << GB_ALBEDO_SHIFT)
+        const SurfaceV sf = surface_at(scene, select((intV)0, pidx, fg), fg, px, py);
+        c.alb = (pack_srgb8x3V(sf.r, sf.g, sf.b, srgb_encode) << GB_ALBEDO_SHIFT)
                 | (unormV(sf.spec_i, 8) << GB_SPECULAR_INTENSITY_SHIFT);
-        w_eo = (pack_srgb8x3V(sf.er, sf.eg, sf.eb, srgb_encode) << GB_EMISSIVE_SHIFT)
+        c.eo = (pack_srgb8x3V(sf.er, sf.eg, sf.eb, srgb_encode) << GB_EMISSIVE_SHIFT)
                | (unormV(sf.occlusion, 8) << GB_OCCLUSION_SHIFT);
-        const SurfaceExtrasV x = material_extras(w_eo, sf.mat, fg, materials, srgb_lut);
+        const SurfaceExtrasV x = material_extras(c.eo, sf.mat, fg, materials, srgb_lut);
         floatV ar, ag, ab, spec_i;
-        decode_albedo(w_alb, srgb_lut, &ar, &ag, &ab, &spec_i);
+        decode_albedo(c.alb, srgb_lut, &ar, &ag, &ab, &spec_i);
         floatV dr, dg, db, sr, sg, sb, tr = 0.0f, tg = 0.0f, tb = 0.0f;
-        LB_RUN(dr, 0) LB_RUN(dg, 1) LB_RUN(db, 2)
+        LB_AT(dr, 0) LB_AT(dg, 1) LB_AT(db, 2)
 #if SPECULAR_RGB
-        LB_RUN(sr, 3) LB_RUN(sg, 4) LB_RUN(sb, 5)
+        LB_AT(sr, 3) LB_AT(sg, 4) LB_AT(sb, 5)
 #if LB_GLTF
-        LB_RUN(tr, 6) LB_RUN(tg, 7) LB_RUN(tb, 8)
+        LB_AT(tr, 6) LB_AT(tg, 7) LB_AT(tb, 8)
 #endif
 #else
         floatV s_lum;
-        LB_RUN(s_lum, 3)
+        LB_AT(s_lum, 3)
         const floatV d_lum = 0.2126f * dr + 0.7152f * dg + 0.0722f * db;
         const floatV k = select((floatV)0.0f, s_lum / d_lum, d_lum > 0.0f);   /* the diffuse light's colour */
         sr = k * dr; sg = k * dg; sb = k * db;
 #if LB_GLTF
         floatV t_lum;
-        LB_RUN(t_lum, 4)
+        LB_AT(t_lum, 4)
         const floatV kt = select((floatV)0.0f, t_lum / d_lum, d_lum > 0.0f);
         tr = kt * dr; tg = kt * dg; tb = kt * db;
 #endif
 #endif
 #if SSAO
-        const floatV ao_v = as_floatV(load_plane((global const uint*)ao, pix0, valid, 0u));
+        floatV ao_v = 0.0f;
+        if (pix0 >= 0) ao_v = as_floatV(load_plane((global const uint*)ao, pix0, valid, 0u));
+        else for (int l = 0; l < valid; ++l) LANE_F(ao_v, l) = ao[LANE_I(pix, l)];
         const floatV ambient_ao = ambient * ao_v;
 #else
         const floatV ao_v = 1.0f;
@@ -142,70 +138,124 @@ kernel void material(global const int* vis_prim, int width, int height, SCENE_PA
             floatV vx, vy, vz;
             view_vectors(camera, width, height, px, py, &vx, &vy, &vz);
             m = brdf_inputs(gltf, spec_i, sf.spec_p, sf.n.x, sf.n.y, sf.n.z, vx, vy, vz);
-            amb = ambient_light(1, &envmaps, &m, ambient_ao, ao_v, sf.n.x, sf.n.y, sf.n.z, vx, vy, vz);
+            amb = ambient_light(1, envmaps, &m, ambient_ao, ao_v, sf.n.x, sf.n.y, sf.n.z, vx, vy, vz);
         } else {
             amb = constant_ambient(ambient_ao);
         }
         compose_lit(&m, fg, ar, ag, ab, spec_i, &amb, 1, x.er, x.eg, x.eb, x.occlusion, x.unlit, dr, dg, db,
                     select(spec_i * sr, sr, gltf), select(spec_i * sg, sg, gltf), select(spec_i * sb, sb, gltf),
-                    tr, tg, tb, &cr, &cg, &cb);
+                    tr, tg, tb, &c.r, &c.g, &c.b);
     }
     if (has_env && env_background && ANY(!fg)) {   /* the environment behind the geometry */
         floatV vx, vy, vz;
         view_vectors(camera, width, height, px, py, &vx, &vy, &vz);
-        environment_background(1, 1, &envmaps, fg, vx, vy, vz, &cr, &cg, &cb);
+        environment_background(1, 1, envmaps, fg, vx, vy, vz, &c.r, &c.g, &c.b);
     }
-    if (write_aov) {
+    return c;
+}
+
+/* Sample 0 (or the only sample) at every pixel: color = c_0; with several samples the running
+ * sum `spread` starts at 0. write_aov (one sample): the G-buffer's surface planes. */
+kernel void material(global const int* vis_prim, int width, int height, SCENE_PARAMS(prims),
+                     constant float2* srgb_encode, global const lb_t* light_buf, float ambient, global const float* ao,
+                     int samples, int write_aov, global const float* camera, int has_env, int env_background, ENV_PARAMS,
+                     global float* color, global float* spread, global uint* gbuffer)
+{
+    const int npix = width * height;
+    const int pix0 = get_global_id(0) * VEC;
+    if (pix0 >= npix) return;
+    const int valid = min(VEC, npix - pix0);
+    intV px, py;
+    int cx = pix0 % width, cy = pix0 / width;
+    for (int l = 0; l < VEC; ++l) {
+        LANE_I(px, l) = cx; LANE_I(py, l) = cy;
+        if (++cx == width) { cx = 0; ++cy; }
+    }
+    const SceneV scene = SCENE_INIT(prims);
+    const EnvMaps envmaps = ENV_INIT;
+    const intV pidx = as_intV(load_plane((global const uint*)vis_prim, pix0, valid, 0xffffffffu));
+    intV fg = pidx >= 0;
+#if VEC == 1
+    fg = fg ? 1 : 0;
+#endif
+    const MaterialSample c = material_sample(&scene, pidx, fg, px, py, (intV)pix0 + LANES, pix0, valid, npix, width,
+                                             height, light_buf, ambient, ao, srgb_encode, camera, has_env,
+                                             env_background, &envmaps);
+    if (write_aov) {                     /* one sample: the pixel centre's surface */
         uintV planes[GB_PLANES];
         gbuffer_background(planes);
-        if (write_aov == 1) {            /* this sample is the pixel centre's surface */
-            planes[GB_ALBEDO_PLANE] = select((uintV)0u, w_alb, as_uintV(fg) != 0u);
-            planes[GB_EMISSIVE_PLANE] = select((uintV)0u, w_eo, as_uintV(fg) != 0u);
-        } else {                         /* pass 1's surface at the centre */
-            const intV ai = as_intV(load_plane((global const uint*)aov_prim, pix0, valid, 0xffffffffu));
-            intV afg = ai >= 0;
-#if VEC == 1
-            afg = afg ? 1 : 0;
-#endif
-            if (ANY(afg)) {
-                const SceneV centre = SCENE_INIT(aov_prims);
-                const SurfaceV sf = surface_at(&centre, select((intV)0, ai, afg), afg, px, py);
-                const uintV w = (pack_srgb8x3V(sf.r, sf.g, sf.b, srgb_encode) << GB_ALBEDO_SHIFT)
-                                | (unormV(sf.spec_i, 8) << GB_SPECULAR_INTENSITY_SHIFT);
-                const uintV eo = (pack_srgb8x3V(sf.er, sf.eg, sf.eb, srgb_encode) << GB_EMISSIVE_SHIFT)
-                                 | (unormV(sf.occlusion, 8) << GB_OCCLUSION_SHIFT);
-                planes[GB_ALBEDO_PLANE] = select((uintV)0u, w, as_uintV(afg) != 0u);
-                planes[GB_EMISSIVE_PLANE] = select((uintV)0u, eo, as_uintV(afg) != 0u);
-            }
-        }
+        planes[GB_ALBEDO_PLANE] = select((uintV)0u, c.alb, as_uintV(fg) != 0u);
+        planes[GB_EMISSIVE_PLANE] = select((uintV)0u, c.eo, as_uintV(fg) != 0u);
         gbuffer_store(gbuffer, npix, pix0, valid, planes);
     }
-    /* Resolve: color = c_0 + (sum_{s>0} (c_s - c_0)) / samples, so a pixel whose samples all
-     * see the same surface keeps c_0 bit for bit. `spread` holds the running sum. */
-    for (int c = 0; c < 3; ++c) {
-        const floatV v = c == 0 ? cr : (c == 1 ? cg : cb);
-        global float* dst = color + c * npix + pix0;
-        global float* acc = spread + c * npix + pix0;
-        floatV out = v, sum = 0.0f;
-        if (sample > 0) {
-            const floatV c0 = as_floatV(load_plane((global const uint*)dst, 0, valid, 0u));
-            sum = v - c0;
-            if (sample > 1) sum = as_floatV(load_plane((global const uint*)acc, 0, valid, 0u)) + sum;
-            out = c0 + sum * (1.0f / (float)samples);
-        }
-        if (sample == 0 || sample == samples - 1) {
-            if (valid == VEC) {
-                vstoreV(out, 0, dst);
-            } else {
-                for (int l = 0; l < valid; ++l) dst[l] = LANE_F(out, l);
+    for (int ch = 0; ch < 3; ++ch) {
+        const floatV v = ch == 0 ? c.r : (ch == 1 ? c.g : c.b);
+        if (valid == VEC) {
+            vstoreV(v, 0, color + ch * npix + pix0);
+            if (samples > 1) vstoreV((floatV)0.0f, 0, spread + ch * npix + pix0);
+        } else {
+            for (int l = 0; l < valid; ++l) {
+                color[ch * npix + pix0 + l] = LANE_F(v, l);
+                if (samples > 1) spread[ch * npix + pix0 + l] = 0.0f;
             }
         }
-        if (sample > 0 && sample < samples - 1) {
-            if (valid == VEC) {
-                vstoreV(sum, 0, acc);
-            } else {
-                for (int l = 0; l < valid; ++l) acc[l] = LANE_F(sum, l);
+    }
+}
+
+#ifndef SAMPLE_RUNS
+#define SAMPLE_RUNS 8    /* runs of VEC pixels per work-item in material_samples */
+#endif
+
+/* Sample s > 0: work-item i owns pixels [i·VEC·SAMPLE_RUNS, +VEC·SAMPLE_RUNS). Only the pixels whose
+ * sample s sees another prim than sample 0 (or background where sample 0 does not) can change
+ * the colour: they are listed, in pixel order, and evaluated VEC at a time (an edge pixel
+ * costs one lane, not the run around it); spread += c_s - c_0 for them. At the last sample
+ * every pixel of the block resolves: color = c_0 + spread / samples. */
+kernel void material_samples(global const int* vis_prims, int width, int height,
+                             SCENE_PARAMS(prims), constant float2* srgb_encode, global const lb_t* light_buf,
+                             float ambient, global const float* ao, int sample, int samples,
+                             global const float* camera, int has_env, int env_background, ENV_PARAMS,
+                             global float* color, global float* spread)
+{
+    const int npix = width * height;
+    const int b0 = get_global_id(0) * (VEC * SAMPLE_RUNS);
+    if (b0 >= npix) return;
+    const int b1 = min(b0 + VEC * SAMPLE_RUNS, npix);
+    global const int* vis_prim = vis_prims + sample * npix;
+    global const int* vis_prim0 = vis_prims;
+    int list[VEC * SAMPLE_RUNS];
+    int n = 0;
+    for (int p = b0; p < b1; ++p) {
+        const int v = vis_prim[p];
+        list[n] = p;
+        n += v != vis_prim0[p];
+    }
+    const SceneV scene = SCENE_INIT(prims);
+    const EnvMaps envmaps = ENV_INIT;
+    for (int k = 0; k < n; k += VEC) {
+        const int m = min(VEC, n - k);
+        intV pix;
+        for (int l = 0; l < VEC; ++l) LANE_I(pix, l) = list[k + min(l, m - 1)];
+        const intV pidx = GATHER_I(vis_prim, pix);
+        intV fg = pidx >= 0;
+#if VEC == 1
+        fg = fg ? 1 : 0;
+#endif
+        const intV py = pix / width, px = pix - py * width;
+        const MaterialSample c = material_sample(&scene, pidx, fg, px, py, pix, -1, m, npix, width, height,
+                                                 light_buf, ambient, ao, srgb_encode, camera, has_env,
+                                                 env_background, &envmaps);
+        for (int ch = 0; ch < 3; ++ch) {
+            const floatV v = ch == 0 ? c.r : (ch == 1 ? c.g : c.b);
+            for (int l = 0; l < m; ++l) {
+                const int q = ch * npix + LANE_I(pix, l);
+                spread[q] = spread[q] + (LANE_F(v, l) - color[q]);
             }
         }
+    }
+    if (sample == samples - 1) {
+        for (int ch = 0; ch < 3; ++ch)
+            for (int p = b0; p < b1; ++p)
+                color[ch * npix + p] = color[ch * npix + p] + spread[ch * npix + p] * (1.0f / (float)samples);
     }
 }

@@ -48,12 +48,13 @@ static inline float3 triangle_barycentrics(const Prim* p, float3 w)
     return (float3)(1.0f - b1 - b2, b1, b2);
 }
 
-/* Barycentrics at pixel (px, py) and its right and lower neighbours, for derivatives. */
-static inline void prim_barycentrics_with_derivatives(const Prim* p, int px, int py,
+/* Barycentrics at the fixed-point sample (sx, sy) (a pixel centre is 256·px + 128) and one pixel
+ * right and down of it, for derivatives. */
+static inline void prim_barycentrics_with_derivatives(const Prim* p, long sx, long sy,
                                                       float3* b, float3* b_dx, float3* b_dy)
 {
     long e[3], ex[3], ey[3];
-    prim_edges(p, (long)px * 256 + 128, (long)py * 256 + 128, e);
+    prim_edges(p, sx, sy, e);
     for (int k = 0; k < 3; ++k) {
         int k1 = (k + 1) % 3;
         ex[k] = e[k] - (long)(p->y[k1] - p->y[k]) * 256;

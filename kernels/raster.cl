@@ -17,10 +17,17 @@
  *          the camera passes offset 0 and stride W; a shadow map writes its region of the shadow
  *          atlas), vis_prim int[W·H] (-1; may be null: shadow maps keep only the depth).
  * ORTHO=1: orthographic prims (setup.cl) whose inv_w are vertex depths: depth = Σ e_k·d_k / area.
+ * DEPTH_ONLY=1 (shadow maps): only the nearest depth is kept, so the visibility order's ties
+ * (triangle id, prim index) are not tracked: the minimum of the same depths, bit-identical.
  * RROWS rows per work-item (CPUs: the tile's TILE rows; GPUs: 1): the work-item loads each prim
  * once, tests its bounding box once and walks only the rows of its run that the box spans, so a
  * small prim costs one test per tile column instead of one per run; the fragments each pixel
  * compares, and their order, are the same for any RROWS.
+ * SAMPLES > 1 (the light pre-pass's msaa, docs/raster_contract.md §10): every pixel keeps a
+ * nearest fragment per sample point P_s (samples.h), all from one walk of the prim list (a prim
+ * is loaded and tested once for all samples), and vis_prim holds SAMPLES planes of W·H; the
+ * setup and binning were widened by SAMPLE_SPREAD to keep prims that cover only a sample;
+ * vis_depth is sample 0's.
  * Work-groups: (TILE/VEC, TILE/RROWS); global size = (tiles_x·TILE/VEC, tiles_y·TILE/RROWS).
  */
 #pragma OPENCL FP_CONTRACT OFF
@@ -29,6 +36,13 @@
 #ifndef TILE
 #define TILE 16
 #endif
+#ifndef DEPTH_ONLY
+#define DEPTH_ONLY 0
+#endif
+#ifndef SAMPLES
+#define SAMPLES 1        /* sample points per pixel: the msaa sub-samples (docs/raster_contract.md §10) */
+#endif
+#include "samples.h"
 #ifndef RROWS
 #define RROWS 1          /* rows per work-item, dividing TILE (clrender/passes/raster.py) */
 #endif
@@ -62,15 +76,16 @@ void raster_tiles(global const Prim* prims, global const int* tile_offsets, glob
 {
     const int px0 = get_global_id(0) * VEC, py0 = get_global_id(1) * RROWS;
     const int tile = get_group_id(1) * tiles_x + get_group_id(0);
-    const int sx0 = px0 * 256 + 128, sy0 = py0 * 256 + 128;     /* first sample of the first run */
-    const int sx_last = sx0 + (VEC - 1) * 256, sy_last = sy0 + (RROWS - 1) * 256;
+    const int cx0 = px0 * 256 + 128, cy0 = py0 * 256 + 128;    /* first pixel centre of the run */
+    const int cx_last = cx0 + (VEC - 1) * 256, cy_last = cy0 + (RROWS - 1) * 256;
     const Textures tx = { texels, srgb_lut, tex_infos, tex_levels, colors, n_vertices, has_colors };
 
-    floatV best_depth[RROWS];
-    intV best_tri[RROWS], best_prim[RROWS];
-    for (int r = 0; r < RROWS; ++r) {
-        best_depth[r] = (floatV)INFINITY; best_tri[r] = (intV)INT_MAX; best_prim[r] = (intV)(-1);
-    }
+    floatV best_depth[SAMPLES][RROWS];
+    intV best_tri[SAMPLES][RROWS], best_prim[SAMPLES][RROWS];
+    for (int s = 0; s < SAMPLES; ++s)
+        for (int r = 0; r < RROWS; ++r) {
+            best_depth[s][r] = (floatV)INFINITY; best_tri[s][r] = (intV)INT_MAX; best_prim[s][r] = (intV)(-1);
+        }
     const int start = tile_offsets[tile];
     const int end = min(start + tile_counts[tile], list_capacity);
     for (int i = start; i < end; ++i) {
@@ -78,32 +93,44 @@ void raster_tiles(global const Prim* prims, global const int* tile_offsets, glob
         const Prim p = prims[pi];
         const int min_x = min(min(p.x[0], p.x[1]), p.x[2]), max_x = max(max(p.x[0], p.x[1]), p.x[2]);
         const int min_y = min(min(p.y[0], p.y[1]), p.y[2]), max_y = max(max(p.y[0], p.y[1]), p.y[2]);
-        if (sx_last < min_x || sx0 > max_x || sy_last < min_y || sy0 > max_y) continue;
-        /* The rows r whose sample row sy0 + 256 r lies in [min_y, max_y]. */
-        const int r0 = max(min_y - sy0 + 255, 0) / 256, r1 = min((max_y - sy0) / 256, RROWS - 1);
-        for (int r = r0; r <= r1; ++r) {
-            const int py = py0 + r;
-            floatV depth;
-            const intV inside_i = prim_cover_run_in(&p, sx0, sy0 + 256 * r, min_x, max_x, min_y, max_y, &depth);
-            if (!ANY(inside_i)) continue;
-            intV wins = inside_i & (depth <= (floatV)far) &
-                        ((depth < best_depth[r]) |
-                         ((depth == best_depth[r]) & (((intV)p.tri < best_tri[r]) |
-                                                      (((intV)p.tri == best_tri[r]) & ((intV)pi < best_prim[r])))));
-            if (!ANY(wins)) continue;
-            if (p.flags & PRIM_MASKED) {
-                const Material m = materials[p.material];
-                for (int l = 0; l < VEC; ++l) {
-                    const float cutoff = (p.flags & PRIM_DITHER) ? screen_door_threshold(px0 + l, py, p.material)
-                                                                 : m.alpha_cutoff;
-                    if (LANE_I(wins, l) && px0 + l < width &&
-                        surface_base_color(&p, px0 + l, py, m, uvs, triangles, tx).w < cutoff)
-                        LANE_I(wins, l) = 0;
+        if (cx_last + SAMPLE_SPREAD < min_x || cx0 - SAMPLE_SPREAD > max_x ||
+            cy_last + SAMPLE_SPREAD < min_y || cy0 - SAMPLE_SPREAD > max_y) continue;
+        for (int s = 0; s < SAMPLES; ++s) {
+            const int sx0 = cx0 + SAMPLE_DX(s), sy0 = cy0 + SAMPLE_DY(s);     /* the run's sample points */
+            if (SAMPLES > 1 && (sx0 + (VEC - 1) * 256 < min_x || sx0 > max_x ||
+                                sy0 + (RROWS - 1) * 256 < min_y || sy0 > max_y)) continue;
+            /* The rows r whose sample row sy0 + 256 r lies in [min_y, max_y]. */
+            const int r0 = max(min_y - sy0 + 255, 0) / 256, r1 = min((max_y - sy0) / 256, RROWS - 1);
+            for (int r = r0; r <= r1; ++r) {
+                const int py = py0 + r;
+                floatV depth;
+                const intV inside_i = prim_cover_run_in(&p, sx0, sy0 + 256 * r, min_x, max_x, min_y, max_y, &depth);
+                if (!ANY(inside_i)) continue;
+#if DEPTH_ONLY
+                intV wins = inside_i & (depth <= (floatV)far) & (depth < best_depth[s][r]);
+#else
+                intV wins = inside_i & (depth <= (floatV)far) &
+                            ((depth < best_depth[s][r]) |
+                             ((depth == best_depth[s][r]) & (((intV)p.tri < best_tri[s][r]) |
+                                                             (((intV)p.tri == best_tri[s][r]) & ((intV)pi < best_prim[s][r])))));
+#endif
+                if (!ANY(wins)) continue;
+                if (p.flags & PRIM_MASKED) {
+                    const Material m = materials[p.material];
+                    for (int l = 0; l < VEC; ++l) {
+                        const float cutoff = (p.flags & PRIM_DITHER) ? screen_door_threshold(px0 + l, py, p.material)
+                                                                     : m.alpha_cutoff;
+                        if (LANE_I(wins, l) && px0 + l < width &&
+                            surface_base_color(&p, sx0 + 256 * l, sy0 + 256 * r, m, uvs, triangles, tx).w < cutoff)
+                            LANE_I(wins, l) = 0;
+                    }
                 }
+                best_depth[s][r] = select(best_depth[s][r], depth, wins);
+#if !DEPTH_ONLY
+                best_tri[s][r] = select(best_tri[s][r], (intV)p.tri, wins);
+                best_prim[s][r] = select(best_prim[s][r], (intV)pi, wins);
+#endif
             }
-            best_depth[r] = select(best_depth[r], depth, wins);
-            best_tri[r] = select(best_tri[r], (intV)p.tri, wins);
-            best_prim[r] = select(best_prim[r], (intV)pi, wins);
         }
     }
     for (int r = 0; r < RROWS && py0 + r < height; ++r) {
@@ -111,8 +138,11 @@ void raster_tiles(global const Prim* prims, global const int* tile_offsets, glob
         for (int l = 0; l < VEC; ++l) {
             int px = px0 + l;
             if (px < width) {
-                vis_depth[out_offset + py * out_stride + px] = LANE_F(best_depth[r], l);
-                if (vis_prim) vis_prim[py * width + px] = LANE_I(best_prim[r], l);
+                vis_depth[out_offset + py * out_stride + px] = LANE_F(best_depth[0][r], l);
+#if !DEPTH_ONLY
+                if (vis_prim)
+                    for (int s = 0; s < SAMPLES; ++s) vis_prim[s * width * height + py * width + px] = LANE_I(best_prim[s][r], l);
+#endif
             }
         }
     }

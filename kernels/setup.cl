@@ -27,6 +27,9 @@
  * where it straddles the near plane). The host's prefix sum then runs over chunk_prims only
  * (chunks, not triangles), and setup_emit places slot i at chunk_offset[i / CHUNK] +
  * prim_local[i]. prim_count, prim_local and staged are indexed by slot.
+ * SAMPLES > 1 (the light pre-pass's msaa, clrender/passes/second_geometry.py): a prim is kept
+ * when it may cover a sample point up to SAMPLE_SPREAD/256 px from a pixel centre (samples.h),
+ * not only a centre: one setup serves every sub-sample of raster.cl SAMPLES.
  * ORTHO=1 (shadow maps of the sun, clrender/passes/shadow.py; orthographic cameras,
  * docs/raster_contract.md §11): the matrix is orthographic
  * (clip.w = 1) and clip.z is the linear depth; the near plane is z >= near and Prim.inv_w
@@ -36,6 +39,7 @@
 #pragma OPENCL FP_CONTRACT OFF
 #include "structs.h"
 
+#include "samples.h"     /* SAMPLES (1): keep prims covering a sample up to SAMPLE_SPREAD from a centre */
 #ifndef ORTHO
 #define ORTHO 0
 #endif
@@ -139,13 +143,13 @@ static int floor_div256(int v) { return v >> 8; }   /* arithmetic shift = floor 
 
 /* Builds prim `k` of the fan into *p; returns its status (STATUS_EMITTED when kept). */
 static int make_prim(const ClipVert* poly, int k, int tri, int material, uint mat_flags, int select,
-                     int width, int height, int2 sample, Prim* p)
+                     int width, int height, Prim* p)
 {
     const ClipVert* v[3] = { &poly[0], &poly[k + 1], &poly[k + 2] };
     for (int i = 0; i < 3; ++i) {
         float w = v[i]->c.w;
-        p->x[i] = snap(v[i]->c.x / w, (float)width) - sample.x;     /* sub-sample: contract §10 */
-        p->y[i] = snap_y(v[i]->c.y / w, (float)height) - sample.y;
+        p->x[i] = snap(v[i]->c.x / w, (float)width);
+        p->y[i] = snap_y(v[i]->c.y / w, (float)height);
 #if ORTHO
         p->inv_w[i] = v[i]->c.z;          /* depth itself: interpolated linearly */
 #else
@@ -171,9 +175,9 @@ static int make_prim(const ClipVert* poly, int k, int tri, int material, uint ma
         f = p->bary2[1]; p->bary2[1] = p->bary2[2]; p->bary2[2] = f;
         area = -area;
     }
-    /* Pixel centers (256·i + 128) inside the bounding box, clipped to the image. */
-    int min_x = min(min(p->x[0], p->x[1]), p->x[2]), max_x = max(max(p->x[0], p->x[1]), p->x[2]);
-    int min_y = min(min(p->y[0], p->y[1]), p->y[2]), max_y = max(max(p->y[0], p->y[1]), p->y[2]);
+    /* Pixel centers (256·i + 128) inside the bounding box widened by SAMPLE_SPREAD, clipped to the image. */
+    int min_x = min(min(p->x[0], p->x[1]), p->x[2]) - SAMPLE_SPREAD, max_x = max(max(p->x[0], p->x[1]), p->x[2]) + SAMPLE_SPREAD;
+    int min_y = min(min(p->y[0], p->y[1]), p->y[2]) - SAMPLE_SPREAD, max_y = max(max(p->y[0], p->y[1]), p->y[2]) + SAMPLE_SPREAD;
     int px0 = max(floor_div256(min_x - 128 + 255), 0), px1 = min(floor_div256(max_x - 128), width - 1);
     int py0 = max(floor_div256(min_y - 128 + 255), 0), py1 = min(floor_div256(max_y - 128), height - 1);
     if (px0 > px1 || py0 > py1) return STATUS_OFFSCREEN;
@@ -187,7 +191,7 @@ static int make_prim(const ClipVert* poly, int k, int tri, int material, uint ma
 static int setup_triangle(int t, global const float* positions, global const int* triangles,
                           global const int* tri_material, global const Material* materials,
                           global const float* view_proj, int width, int height, float near, int select,
-                          int2 sample, global Prim* dst, int room, uchar* status)
+                          global Prim* dst, int room, uchar* status)
 {
     const int material = tri_material[t];
     const uint mat_flags = materials[material].flags;
@@ -232,7 +236,7 @@ static int setup_triangle(int t, global const float* positions, global const int
     int emitted = 0, last = STATUS_DEGENERATE;
     for (int k = 0; k + 2 < n; ++k) {
         Prim p;
-        last = make_prim(poly, k, t, material, mat_flags, select, width, height, sample, &p);
+        last = make_prim(poly, k, t, material, mat_flags, select, width, height, &p);
         if (last != STATUS_EMITTED) continue;
         if (dst && emitted < room) dst[emitted] = p;
         ++emitted;
@@ -267,21 +271,21 @@ static uchar culled_status(int t, int v, global const float* positions, global c
 kernel void setup_count(global const float* positions, global const int* triangles,
                         global const int* tri_material, global const Material* materials,
                         global const float* view_proj, int n_tris, int width, int height, float near,
-                        int select, int sample_x, int sample_y, global int* prim_count, global uchar* status,
+                        int select, global int* prim_count, global uchar* status,
                         global Prim* staged)
 {
     int t = get_global_id(0);
     if (t >= n_tris) return;
     uchar s;
     prim_count[t] = setup_triangle(t, positions, triangles, tri_material, materials, view_proj,
-                                   width, height, near, select, (int2)(sample_x, sample_y), staged + t, 1, &s);
+                                   width, height, near, select, staged + t, 1, &s);
     status[t] = s;
 }
 
 kernel void setup_emit(global const float* positions, global const int* triangles,
                        global const int* tri_material, global const Material* materials,
                        global const float* view_proj, int n_tris, int width, int height, float near,
-                       int select, int sample_x, int sample_y, global const int* prim_offset,
+                       int select, global const int* prim_offset,
                        global const int* prim_count,
                        global const Prim* staged, int capacity, global Prim* prims)
 {
@@ -296,7 +300,7 @@ kernel void setup_emit(global const float* positions, global const int* triangle
     }
     uchar s;
     setup_triangle(t, positions, triangles, tri_material, materials, view_proj,
-                   width, height, near, select, (int2)(sample_x, sample_y), prims + offset, room, &s);
+                   width, height, near, select, prims + offset, room, &s);
 }
 
 #else
@@ -305,7 +309,7 @@ kernel __attribute__((reqd_work_group_size(CHUNK, 1, 1)))
 void setup_count(global const float* positions, global const int* triangles,
                  global const int* tri_material, global const Material* materials,
                  global const float* view_proj, int n_tris, int width, int height, float near,
-                 int select, int sample_x, int sample_y, global int* prim_count, global uchar* status,
+                 int select, global int* prim_count, global uchar* status,
                  global Prim* staged, global const int* chunk_list, global const int* chunk_count,
                  global const uchar* chunk_status, int write_status, global int* prim_local, global int* chunk_prims)
 {
@@ -323,7 +327,7 @@ void setup_count(global const float* positions, global const int* triangles,
     if (t < n_tris) {                      /* past n_tris: the partial last chunk's spare slots */
         uchar s;
         count = setup_triangle(t, positions, triangles, tri_material, materials, view_proj,
-                               width, height, near, select, (int2)(sample_x, sample_y), staged + i, 1, &s);
+                               width, height, near, select, staged + i, 1, &s);
         status[t] = s;
     }
     sum[lid] = count;                      /* inclusive Hillis-Steele scan of the chunk's counts */
@@ -343,7 +347,7 @@ void setup_count(global const float* positions, global const int* triangles,
 kernel void setup_emit(global const float* positions, global const int* triangles,
                        global const int* tri_material, global const Material* materials,
                        global const float* view_proj, int n_tris, int width, int height, float near,
-                       int select, int sample_x, int sample_y, global const int* prim_local,
+                       int select, global const int* prim_local,
                        global const int* prim_count,
                        global const Prim* staged, int capacity, global Prim* prims,
                        global const int* chunk_list, global const int* chunk_count, global const int* chunk_offset,
@@ -361,6 +365,6 @@ kernel void setup_emit(global const float* positions, global const int* triangle
     }
     uchar s;
     setup_triangle(t, positions, triangles, tri_material, materials, view_proj,
-                   width, height, near, select, (int2)(sample_x, sample_y), prims + offset, room, &s);
+                   width, height, near, select, prims + offset, room, &s);
 }
 #endif

@@ -25,16 +25,17 @@ static inline float2 interp_uv(global const float* uvs, global const int* triang
     return (float2)(m[0] * uv.x + m[1] * uv.y + m[2], m[3] * uv.x + m[4] * uv.y + m[5]);
 }
 
-/* Base color (linear RGBA) of the prim's material at pixel (px, py): factor × vertex colour ×
- * texture, as material_eval.h computes it (the alpha MASK and shadow-map alpha tests). */
-static float4 surface_base_color(const Prim* p, int px, int py, Material m,
+/* Base color (linear RGBA) of the prim's material at the fixed-point sample (sx, sy) (a pixel
+ * centre is 256·px + 128): factor × vertex colour × texture, as material_eval.h computes it (the
+ * alpha MASK and shadow-map alpha tests). */
+static float4 surface_base_color(const Prim* p, long sx, long sy, Material m,
                                  global const float* uvs, global const int* triangles, Textures tx)
 {
     float4 color = vload4(0, m.base_color);
     const TexSlot slot = m.slots[SLOT_BASE];
     if (slot.texture < 0 && !tx.has_colors) return color;
     float3 b, b_dx, b_dy;
-    prim_barycentrics_with_derivatives(p, px, py, &b, &b_dx, &b_dy);
+    prim_barycentrics_with_derivatives(p, sx, sy, &b, &b_dx, &b_dy);
     if (tx.has_colors) {
         const int i0 = triangles[3 * p->tri], i1 = triangles[3 * p->tri + 1], i2 = triangles[3 * p->tri + 2];
         color *= b.x * vload4(i0, tx.colors) + b.y * vload4(i1, tx.colors) + b.z * vload4(i2, tx.colors);

@@ -94,12 +94,9 @@ typedef struct {
 #define ORTHO 0                 /* 1: orthographic prims (setup.cl): inv_w hold depths, barycentrics are screen-linear */
 #endif
 
-/* The surfaces of prims w (per lane; lanes outside fg: any valid index) at pixels (px, py),
- * evaluated at the fixed-point point (256 px + 128 + ox, 256 py + 128 + oy) of the prims' frame:
- * the pixel centre for (0, 0); (-dx, -dy) for prims set up for sub-sample (dx, dy) (the raster
- * contract §10), whose frame is shifted by it, evaluates them at the pixel centre again, as
- * multisampling shades once per pixel. */
-static SurfaceV surface_at_offset(const SceneV* sc, intV w, intV fg, intV px, intV py, int ox, int oy)
+/* The surfaces of prims w (per lane; lanes outside fg: any valid index) at the centres of
+ * pixels (px, py) (fixed point 256 px + 128, 256 py + 128). */
+static SurfaceV surface_at(const SceneV* sc, intV w, intV fg, intV px, intV py)
 {
     global const Prim* prims = sc->prims;
     SurfaceV sf;
@@ -120,7 +117,7 @@ static SurfaceV surface_at_offset(const SceneV* sc, intV w, intV fg, intV px, in
 #undef PRIM_F
 
     /* Edge functions at the pixel center (docs/raster_contract.md §5), 64-bit. */
-    longV SX = CONVERT_V(px, longV) * 256 + (128 + ox), SY = CONVERT_V(py, longV) * 256 + (128 + oy);
+    longV SX = CONVERT_V(px, longV) * 256 + 128, SY = CONVERT_V(py, longV) * 256 + 128;
     longV dx0 = X1 - X0, dy0 = Y1 - Y0, dx1 = X2 - X1, dy1 = Y2 - Y1, dx2 = X0 - X2, dy2 = Y0 - Y2;
     longV e0 = dx0 * (SY - Y0) - dy0 * (SX - X0);
     longV e1 = dx1 * (SY - Y1) - dy1 * (SX - X1);
@@ -169,10 +166,5 @@ static SurfaceV surface_at_offset(const SceneV* sc, intV w, intV fg, intV px, in
     sf.n.x = select(sf.n.x, -sf.n.x, back); sf.n.y = select(sf.n.y, -sf.n.y, back);
     sf.n.z = select(sf.n.z, -sf.n.z, back);
     return sf;
-}
-
-static inline SurfaceV surface_at(const SceneV* sc, intV w, intV fg, intV px, intV py)
-{
-    return surface_at_offset(sc, w, fg, px, py, 0, 0);
 }
 #endif

@@ -286,6 +286,49 @@ def test_atlas_beyond_device_memory_is_a_clear_error(device, monkeypatch):
         renderer.render(scene, CAMERA)
 
 
+def test_sun_cascades_are_kept_when_the_camera_moves_less_than_their_grid(device):
+    """A cascade's side is on a ladder and its centre on a grid of 1/8 of the side
+    (shadow_views.py), so a camera nudged by less than the grid gives the same cascades: every
+    map is kept (none rendered), and the frame still equals a fresh renderer's bit for bit."""
+    scene = spot_scene(size=256)
+    scene.set_sun(SUN_DIR, (1.0, 1.0, 1.0), shadow_map_size=256)
+    r = clrender.Renderer(W, H, device=device.id)
+    r.render(scene, CAMERA)
+    shift = np.array([2e-3, 0.0, 1e-3])
+    nudged = Camera.look_at(np.add(CAMERA.eye, shift), np.add(CAMERA.target, shift), fov_y_deg=50, near=0.1, far=60)
+    frame = r.render(scene, nudged)
+    assert frame.stats["shadow_maps"] == 4 and frame.stats["shadow_maps_reused"] == 4
+    assert frame.stats["shadow_ms"] < 1.0
+    fresh = clrender.Renderer(W, H, device=device.id).render(scene, nudged)
+    np.testing.assert_array_equal(frame.shadow, fresh.shadow)
+    np.testing.assert_array_equal(frame.color, fresh.color)
+    assert (frame.shadow[..., 0] < 0.5).any(), "the sun must cast some shadow here"
+
+
+def test_sun_cascades_cover_their_slices_for_random_cameras():
+    """Host-side: for random perspective cameras, every corner of each cascade's slice of the view
+    frustum (inside the scene's bounds) projects inside its map, with the PCF border to spare."""
+    from clrender import shadow_views
+    from clrender.scene import Sun
+    rng = np.random.default_rng(5)
+    bounds = ((-200.0, -200.0, -200.0), (200.0, 200.0, 200.0))   # wider than every view: no clamping
+    sun = Sun(SUN_DIR, (1.0, 1.0, 1.0), True, 512)
+    for _ in range(40):
+        eye = rng.uniform(-5, 5, 3) + (0.0, 10.0, 0.0)
+        cam = Camera.look_at(eye, eye + rng.normal(size=3), fov_y_deg=float(rng.uniform(20, 80)), near=0.1,
+                             far=float(rng.uniform(5, 30)))
+        aspect = float(rng.uniform(0.5, 2.0))
+        views = shadow_views.sun_views(sun, cam, aspect, bounds, 3, 0.75)
+        right, up, back = (np.asarray(v, np.float64) for v in cam.basis())
+        tan_x, tan_y = cam.half_extents(aspect)
+        splits = [cam.near] + [v.split for v in views[:-1]] + [cam.far]
+        for c, v in enumerate(views):
+            pts = np.array([np.asarray(cam.eye) + d * (-back + sx * tan_x * right + sy * tan_y * up)
+                            for d in splits[c:c + 2] for sx in (-1, 1) for sy in (-1, 1)])
+            q = (v.matrix.astype(np.float64) @ np.c_[pts, np.ones(8)].T).T
+            assert np.abs(q[:, :2] / q[:, 3:]).max() <= 1.0 - 3.0 / v.size, c
+
+
 def test_static_maps_are_reused_across_frames_and_match_fresh_renders(device):
     """A static spot's map is not rendered again when only the camera moves (the sun's cascades
     follow the camera); moving the light, or another map taking its atlas square, redraws it.

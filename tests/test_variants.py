@@ -205,7 +205,8 @@ def test_bytes_per_pixel_stats(make_renderer):
     assert bpp["indexed"]["gbuffer_geometry_pass"] == 8 and bpp["indexed"]["gbuffer_aov_planes"] == 16
     assert bpp["prepass"]["gbuffer_geometry_pass"] == 16 and bpp["prepass"]["light_buffer"] == 20   # D.rgb, S, T
     assert bpp["prepass_bp"]["light_buffer"] == 16                                                 # D.rgb, S
-    assert bpp["msaa4"]["msaa_visibility"] == 32 and bpp["msaa4"]["msaa_resolve"] == 12
+    assert bpp["msaa4"]["msaa_visibility"] == 20 and bpp["msaa4"]["msaa_resolve"] == 12   # 4 prim planes + depth
+    assert bpp["msaa4"]["gbuffer_geometry_pass"] == 24 and bpp["msaa4"]["gbuffer_aov_planes"] == 0
     for b in bpp.values():
         assert b["total"] == sum(v for k, v in b.items() if k != "total")
 
@@ -251,13 +252,14 @@ def test_msaa_interior_pixels_unchanged(msaa_frames):
         np.testing.assert_array_equal(fr.color[interior], one.color[interior])
         np.testing.assert_array_equal(fr.gbuffer, one.gbuffer)
         assert (np.abs(fr.color - one.color).max(-1) > 0.05)[msaa_frames["edge"]].mean() > 0.3
-        assert fr.stats["geometry_passes"] == 1 + n
+        assert fr.stats["geometry_passes"] == 2
 
 
 @pytest.mark.parametrize("samples", [2, 4, 8])
 def test_sub_sample_visibility_matches_reference(device, samples):
-    """Each sub-sample's raster (setup shifted by the sample offset) against the NumPy reference
-    rasterizer evaluated at that sample point: triangle ids exact (contract §10)."""
+    """Each sub-sample's visibility (one setup and binning widened to the samples, one raster
+    keeping a fragment per sample point) against the NumPy reference rasterizer evaluated at
+    that sample point: triangle ids exact (contract §10)."""
     import pyopencl.array as cla  # noqa: F401  (the passes use it)
     from clrender.passes.second_geometry import SampleGeometryPass
     size = (61, 47)
@@ -267,16 +269,29 @@ def test_sub_sample_visibility_matches_reference(device, samples):
     geo = next(p for p in r.pipeline.passes if isinstance(p, SampleGeometryPass))
     offsets = sample_offsets(samples)
     assert offsets == tuple((16 * x, 16 * y) for x, y in SAMPLE_PATTERNS[samples])
+    planes = geo.raster.vis_prim.get().reshape(samples, -1)
+    prims = geo.sub["prims"].get()
     for s, (dx, dy) in enumerate(offsets):
-        sub = geo.subs[s]
-        vis = sub["vis_prim"].get()[: size[0] * size[1]].reshape(size[1], size[0])
-        prims = sub["prims"].get()
+        vis = planes[s][: size[0] * size[1]].reshape(size[1], size[0])
         got = np.where(vis >= 0, prims["tri"][np.maximum(vis, 0)], -1)
         expect, _, _ = rasterize(scene, cam, *size, sample=(dx, dy))
         assert (expect >= 0).mean() > 0.3
         np.testing.assert_array_equal(got, expect, err_msg=f"sample {s} at ({dx}, {dy})/256")
     centre, _, _ = rasterize(scene, cam, *size)
     assert not np.array_equal(centre, rasterize(scene, cam, *size, sample=offsets[0])[0])
+
+
+def test_kernel_sample_patterns_match_host():
+    """kernels/samples.h carries the same D3D patterns as SAMPLE_PATTERNS (the NumPy reference's)."""
+    import re
+    from clrender.device import kernels_dir
+    text = (kernels_dir() / "samples.h").read_text()
+    for n, pattern in SAMPLE_PATTERNS.items():
+        m = re.search(rf"#(?:el)?if SAMPLES == {n}\n#define SAMPLE_PATTERN ([-\d, ]+)\n#define PATTERN_SPREAD (\d+)", text)
+        assert m, f"no SAMPLES == {n} block in samples.h"
+        values = [int(v) for v in m.group(1).split(",")]
+        assert values == [c for xy in pattern for c in xy], n
+        assert int(m.group(2)) == max(max(abs(x), abs(y)) for x, y in pattern), n
 
 
 # -- options ------------------------------------------------------------------------------------------

@@ -24,11 +24,14 @@ class BinningPass(RenderPass):
     inputs = ("prims", "prim_total", "prim_capacity")
     outputs = ("tile_counts", "tile_offsets", "tile_prims", "tile_list_capacity")
 
-    def __init__(self, device, config):
+    def __init__(self, device, config, tile: int | None = None, samples: int = 1):
+        """tile: the tile side (default config.tile_size; shadow maps bin to their own).
+        samples: bin for every msaa sub-sample point (kernels/samples.h), not only the centres."""
         super().__init__(device, config)
-        self.tile = config.tile_size
-        self.count_kernel = device.kernel("binning.cl", "bin_count", {"TILE": self.tile})
-        self.fill_kernel = device.kernel("binning.cl", "bin_fill", {"TILE": self.tile})
+        self.tile = tile or config.tile_size
+        defines = {"TILE": self.tile, **({"SAMPLES": int(samples)} if samples > 1 else {})}
+        self.count_kernel = device.kernel("binning.cl", "bin_count", defines)
+        self.fill_kernel = device.kernel("binning.cl", "bin_fill", defines)
         self.scan = scan_for(device)
         self.list_capacity = 0
         self.total = zeros(self.queue, 1, np.int32)

@@ -13,12 +13,16 @@ class RasterPass(RenderPass):
               "texels", "srgb_lut", "tex_infos", "tex_levels", "colors", "n_vertices", "has_colors")
     outputs = ("vis_depth", "vis_prim")
 
-    def __init__(self, device, config, ortho: bool = False, depth_only: bool = False):
+    def __init__(self, device, config, ortho: bool = False, depth_only: bool = False, tile: int | None = None,
+                 samples: int = 1):
         """ortho: orthographic prims (setup.cl ORTHO). depth_only (shadow maps): no visibility
         buffer of its own; run() writes depth into res["raster_target"] at res["raster_offset"]
-        with row stride res["raster_stride"] (a region of the shadow atlas)."""
+        with row stride res["raster_stride"] (a region of the shadow atlas), built with DEPTH_ONLY
+        (the nearest depth, no visibility order). tile: as the BinningPass it reads (default
+        config.tile_size). samples > 1: a nearest fragment per msaa sub-sample point
+        (kernels/samples.h); vis_prim holds `samples` planes of W·H."""
         super().__init__(device, config)
-        self.tile = capabilities.tile_size_for(device.cl_device, config.tile_size)
+        self.tile = capabilities.tile_size_for(device.cl_device, tile or config.tile_size)
         self.vec = capabilities.raster_vector_width(device.cl_device, self.tile)
         self.depth_only = depth_only
         if depth_only:
@@ -27,6 +31,7 @@ class RasterPass(RenderPass):
         # Rows per work-item (raster.cl RROWS): the whole tile column on CPUs, where a work-item's
         # prim loads and bounding-box tests are the cost; a pixel per work-item on GPUs.
         self.ortho = ortho
+        self.samples = samples
         self.set_rows(self.tile if self.vec > 1 else 1)
 
     def set_rows(self, rows: int):
@@ -34,14 +39,15 @@ class RasterPass(RenderPass):
         if self.tile % rows:
             raise ValueError(f"rows per work-item {rows} must divide the tile size {self.tile}")
         self.rows = rows
-        defines = {"TILE": self.tile, "VEC": self.vec, "RROWS": rows, **({"ORTHO": 1} if self.ortho else {})}
+        defines = {"TILE": self.tile, "VEC": self.vec, "RROWS": rows, **({"ORTHO": 1} if self.ortho else {}),
+                   **({"DEPTH_ONLY": 1} if self.depth_only else {}), **({"SAMPLES": self.samples} if self.samples > 1 else {})}
         self.kernel = self.device.kernel("raster.cl", "raster_tiles", defines)
 
     def allocate(self, width, height):
         if self.depth_only:
             return
         self.vis_depth = empty(self.queue, width * height, np.float32)
-        self.vis_prim = empty(self.queue, width * height, np.int32)
+        self.vis_prim = empty(self.queue, self.samples * width * height, np.int32)
 
     def publish(self, res):
         if not self.depth_only:

@@ -1,13 +1,13 @@
 """The second geometry pass of the light pre-pass and light-indexed pipelines (report V.2, V.3:
 "all the geometry is submitted twice"; docs/variants.md). No kernel of its own: it runs the
-camera's raster (kernels/raster.cl) again, and with `msaa=N` the setup, binning and raster once
-per sub-sample of the standard D3D pattern (docs/raster_contract.md §10).
+camera's raster (kernels/raster.cl) again, and with `msaa=N` at the N sub-samples of the standard
+D3D pattern (docs/raster_contract.md §10): one setup, binning and raster for all samples.
 
 - `RasterAgainPass`: the raster again over pass 1's bins, into pass 1's visibility buffer (pass 1's
   G-buffer pass has consumed it): the same fragments, at the cost of a second rasterization.
-- `SampleGeometryPass`: for each sub-sample s, a setup of the geometry shifted by minus the
-  sample's offset (so pixel centres land on the sample), its binning and raster, each with
-  buffers of its own; publishes `vis_prim_s` and `prims_s` for the material pass.
+- `SampleGeometryPass`: one setup and binning widened to the samples' reach, one raster that
+  keeps a nearest fragment per sample point; publishes the per-sample visibility planes and the
+  shared prims for the material pass.
 """
 from __future__ import annotations
 
@@ -17,7 +17,8 @@ from .raster import RasterPass
 from .setup import SetupPass
 
 # Sample offsets from the pixel centre in 1/16 pixel, y down: Direct3D's standard multisample
-# patterns (D3D11_STANDARD_MULTISAMPLE_PATTERN); ×16 gives the raster's 1/256 units.
+# patterns (D3D11_STANDARD_MULTISAMPLE_PATTERN); ×16 gives the raster's 1/256 units. The kernels'
+# copy is kernels/samples.h (tests/test_variants.py compares them).
 SAMPLE_PATTERNS = {
     1: ((0, 0),),
     2: ((4, 4), (-4, -4)),
@@ -43,51 +44,49 @@ class RasterAgainPass(RasterPass):
 
 
 class SampleGeometryPass(RenderPass):
+    """The geometry at the msaa sub-samples: one setup and one binning that keep every prim which
+    may cover a sample point (kernels/samples.h SAMPLE_SPREAD), then one raster that walks each
+    tile's prims once and keeps a nearest fragment per sample (raster.cl SAMPLES). Publishes
+    `msaa_vis_prims` (a plane of W·H prim indices per sample) over the shared `msaa_prims`, so
+    the material pass can tell a sample that sees sample 0's prim from one that does not."""
     name = "msaa_geometry"
     inputs = SetupPass.inputs + ("uvs", "texels", "srgb_lut", "tex_infos", "tex_levels", "colors", "n_vertices",
                                  "has_colors")
+    outputs = ("msaa_vis_prims", "msaa_prims")
 
     def __init__(self, device, config, samples: int, select: str, ortho: bool = False):
         super().__init__(device, config)
-        self.trios = [(SetupPass(device, config, select=select, sample=offset, ortho=ortho), BinningPass(device, config),
-                       RasterPass(device, config, ortho=ortho)) for offset in sample_offsets(samples)]
-        self.outputs = tuple(n for s in range(samples) for n in (f"vis_prim_{s}", f"prims_{s}"))
+        self.samples = samples
+        self.setup = SetupPass(device, config, select=select, samples=samples, ortho=ortho)
+        self.binning = BinningPass(device, config, samples=samples)
+        self.raster = RasterPass(device, config, ortho=ortho, samples=samples)
+        self.stages = (self.setup, self.binning, self.raster)
 
     def allocate(self, width, height):
-        for trio in self.trios:
-            for p in trio:
-                p.allocate(width, height)
+        for p in self.stages:
+            p.allocate(width, height)
 
     def prepare_scene(self, scene_buffers):
-        for trio in self.trios:
-            for p in trio:
-                p.prepare_scene(scene_buffers)
+        for p in self.stages:
+            p.prepare_scene(scene_buffers)
 
     def publish(self, res):
-        self.subs = []
-        for s, trio in enumerate(self.trios):
-            sub = Resources(buffers=dict(res.buffers), values=dict(res.values))
-            for p in trio:
-                p.publish(sub)
-            res.buffers[f"vis_prim_{s}"] = sub["vis_prim"]
-            res.buffers[f"prims_{s}"] = sub["prims"]
-            self.subs.append(sub)
+        self.sub = Resources(buffers=dict(res.buffers), values=dict(res.values))
+        for p in self.stages:
+            p.publish(self.sub)
+        res.buffers.update(msaa_vis_prims=self.raster.vis_prim, msaa_prims=self.sub["prims"])
 
     def run(self, res):
-        for sub, trio in zip(self.subs, self.trios):
-            for p in trio:
-                p.publish(sub)                   # after a grow, the buffers are new
-                p.run(sub)
+        for p in self.stages:
+            p.publish(self.sub)                  # after a grow, the buffers are new
+            p.run(self.sub)
 
     def overflows(self):
-        from .base import Overflow
-        return [Overflow(f"{s}:{ov.name}", ov.total, ov.capacity)
-                for s, trio in enumerate(self.trios) for p in trio for ov in p.overflows()]
+        return [ov for p in self.stages for ov in p.overflows()]
 
     def grow(self, name, needed):
-        s, inner = name.split(":", 1)
-        for p in self.trios[int(s)]:
-            if any(ov.name == inner for ov in p.overflows()):
-                p.grow(inner, needed)
+        for p in self.stages:
+            if any(ov.name == name for ov in p.overflows()):
+                p.grow(name, needed)
                 return
         raise KeyError(name)

@@ -22,23 +22,24 @@ class SetupPass(RenderPass):
     inputs = ("positions", "triangles", "tri_material", "materials", "view_proj", "n_tris", "near")
     outputs = ("prims", "prim_total", "prim_capacity", "tri_status")
 
-    def __init__(self, device, config, ortho: bool = False, select: str = "all", sample: tuple = (0, 0),
+    def __init__(self, device, config, ortho: bool = False, select: str = "all", samples: int = 1,
                  status: bool = True):
         """ortho: the view is orthographic (a sun shadow cascade); see setup.cl ORTHO.
         select: which triangles become prims (setup.cl SELECT_*): "all", "opaque" (BLEND
         triangles are left to the transparency pass), "blend" (only those), "dither" (all;
-        BLEND prims get the screen-door flag). sample: (dx, dy) in 1/256 pixel, the sub-sample
-        the raster covers instead of the pixel centre (docs/raster_contract.md §10).
+        BLEND prims get the screen-door flag). samples: keep prims that may cover any of the
+        msaa sub-sample points (kernels/samples.h, docs/raster_contract.md §10), not only a centre.
         status=False (shadow maps, whose statuses nothing reads): with the chunk cull, the
         triangles of culled chunks keep a stale tri_status and triangle_stats() refuses."""
         super().__init__(device, config)
         self.select = np.int32(SELECT[select])
-        self.sample = tuple(np.int32(v) for v in sample)
         self.write_status = bool(status)
         self.cull = ChunkCullPass(device, config, ortho=ortho) if getattr(config, "chunk_cull", False) else None
-        defines = {"ORTHO": 1} if ortho else None
+        defines = {"ORTHO": 1} if ortho else {}
         if self.cull is not None:
             defines = {**chunk_defines(ortho), "CHUNK_CULL": 1}
+        if samples > 1:
+            defines = {**defines, "SAMPLES": int(samples)}
         self.count_kernel = device.kernel("setup.cl", "setup_count", defines)
         self.emit_kernel = device.kernel("setup.cl", "setup_emit", defines)
         self.checked_group = self.cull is None     # the chunk cull's work-group, checked once built
@@ -97,7 +98,7 @@ class SetupPass(RenderPass):
         w, h = res["width"], res["height"]
         common = (res["positions"].data, res["triangles"].data, res["tri_material"].data,
                   res["materials"].data, res["view_proj"].data, np.int32(n), np.int32(w), np.int32(h),
-                  np.float32(res["near"]), self.select, *self.sample)
+                  np.float32(res["near"]), self.select)
         if self.cull is not None:
             self._run_slots(res, common)
             return

@@ -25,7 +25,7 @@ import numpy as np
 import pyopencl as cl
 import pyopencl.array as cla
 
-from .. import shadow_views, structs
+from .. import capabilities, shadow_views, structs
 from .base import Overflow, RenderPass, Resources, empty, zeros
 from .binning import BinningPass
 from .raster import RasterPass
@@ -38,9 +38,10 @@ class _MapStages:
     """Setup, binning and depth-only raster sized for maps of one side and projection."""
 
     def __init__(self, device, config, size: int, ortho: bool, scene_res):
+        tile = capabilities.shadow_tile_size(device.cl_device, config)
         self.setup = SetupPass(device, config, ortho=ortho, status=False)    # nothing reads a map's statuses
-        self.binning = BinningPass(device, config)
-        self.raster = RasterPass(device, config, ortho=ortho, depth_only=True)
+        self.binning = BinningPass(device, config, tile)
+        self.raster = RasterPass(device, config, ortho=ortho, depth_only=True, tile=tile)
         for p in (self.setup, self.binning, self.raster):
             p.allocate(size, size)
         if scene_res is not None:
