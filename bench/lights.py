@@ -3,6 +3,7 @@
     python -m bench.lights [--counts 0 64 256 1024 4096] [--repeats 5] [--warmup 2]
                            [--tile-size 8] [--light-tile-size 16] [--radius-frac 0.05]
                            [--intensity 1.0] [--device NAME] [--no-gl] [--no-brute-force]
+                           [--shading auto|blinn_phong]
 
 For every light count the scene gets ``count`` seeded point lights
 (``scene.add_random_lights(count, seed=1, radius=(r, r), intensity)``, r = ``radius-frac`` of the
@@ -83,6 +84,8 @@ def main(argv=None) -> int:
     ap.add_argument("--device", default=None)
     ap.add_argument("--tile-size", type=int, default=None, help="raster tile size (Renderer tile_size)")
     ap.add_argument("--light-tile-size", type=int, default=None, help="light-culling tile size")
+    ap.add_argument("--shading", choices=("auto", "blinn_phong"), default="auto",
+                    help="clrender's shading model (auto: Sponza's metallic-roughness materials with the glTF BRDF)")
     ap.add_argument("--radius-frac", type=float, default=0.05,
                     help="light radius as a fraction of the scene's bounds diagonal")
     ap.add_argument("--intensity", type=float, default=1.0)
@@ -109,7 +112,7 @@ def main(argv=None) -> int:
           f"{radius:.3f} ({args.radius_frac:g} of the bounds diagonal), intensity {args.intensity:g}, "
           f"ambient {scene.ambient:g}, {args.width}x{args.height}")
 
-    options = {}
+    options = {"shading": args.shading}
     if args.tile_size is not None:
         options["tile_size"] = args.tile_size
     if args.light_tile_size is not None:

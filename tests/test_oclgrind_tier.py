@@ -439,7 +439,7 @@ def test_motion_blur_kernels(device, capfd):
 
 def test_pipeline_variant_kernels(device, capfd):
     """The light pre-pass (thin G-buffer, light_buffer.cl in float and half with RGB and luminance
-    specular, the raster again, material.cl; msaa=4 with its per-sample setups) and light-indexed
+    specular, the raster again, material.cl; msaa=4: the raster at every sample, material_samples) and light-indexed
     (depth-only G-buffer, forward_shade.cl) on a tiny frame with a shadowed spot, a shadowed sun
     and a masked, textured quad, against the deferred frame: light-indexed bit-identical, the light
     pre-pass within 1e-5 of the peak (RGB), the others within their own bounds."""
