@@ -13,9 +13,13 @@ read yet is copied on the device into buffers of its own (a queued copy, no wait
 so a render loop allocates nothing), or read to the host when those copies would exceed
 `SnapshotPool.budget` (frames kept in bulk without being read). Either way a Frame's arrays are
 fixed when render() returns, whatever is rendered after it, and pickling a Frame reads it all.
+Large reads go to host buffers reused once no array references them (`HostArrays`), so a render
+loop does not fault in fresh pages for every frame.
 """
 from __future__ import annotations
 
+import sys
+import threading
 import weakref
 from dataclasses import dataclass, field
 from functools import cached_property
@@ -60,6 +64,60 @@ class SnapshotPool:
     @property
     def held_bytes(self) -> int:
         return self.live + sum(b.nbytes for bucket in self.free.values() for b in bucket)
+
+
+class HostArrays:
+    """Host memory for large reads, reused once nothing references it any more. A fresh numpy
+    array of 100 MB costs 11 ms of page faults when first written (100-250 ms when the kernel is
+    short of free pages: seen on 4K frames); one whose pages were touched before, 4 ms. A buffer
+    is handed out again only when the pool's own list holds the last reference to it (every
+    array or view made from it, however derived, references it), so reuse never aliases an
+    array a caller still has. At most `budget` bytes of unreferenced buffers are kept."""
+
+    MIN_BYTES = 4 << 20          # smaller reads: plain np.empty (few pages, nothing to gain)
+
+    def __init__(self, budget: int = 1 << 30):
+        self.budget = int(budget)
+        self.buffers: list = []  # uint8 arrays, oldest first
+        self.lock = threading.Lock()
+
+    def empty(self, count: int, dtype) -> np.ndarray:
+        dtype = np.dtype(dtype)
+        nbytes = int(count) * dtype.itemsize
+        if nbytes < self.MIN_BYTES:
+            return np.empty(count, dtype)
+        with self.lock:
+            for i in range(len(self.buffers)):
+                if self.buffers[i].nbytes == nbytes and self._unreferenced(i):
+                    buf = self.buffers.pop(i)
+                    break
+            else:
+                buf = np.empty(nbytes, np.uint8)
+            self.buffers.append(buf)                 # most recently used last
+            del buf
+            self._trim()
+            return self.buffers[-1].view(dtype)
+
+    def _unreferenced(self, i: int) -> bool:
+        return sys.getrefcount(self.buffers[i]) == 2      # the list's and getrefcount's argument
+
+    def _trim(self) -> None:
+        """Forget the oldest unreferenced buffers beyond the budget, and referenced ones beyond
+        64 entries (they belong to their arrays and are freed with them)."""
+        free = [i for i in range(len(self.buffers) - 1) if self._unreferenced(i)]
+        excess = sum(self.buffers[i].nbytes for i in free) - self.budget
+        drop = set()
+        for i in free:
+            if excess <= 0:
+                break
+            drop.add(i)
+            excess -= self.buffers[i].nbytes
+        busy = [i for i in range(len(self.buffers) - 1) if i not in free]
+        drop.update(busy[:max(len(self.buffers) - 64, 0)])
+        self.buffers = [b for i, b in enumerate(self.buffers) if i not in drop]
+
+
+HOST_ARRAYS = HostArrays()
 
 
 class _Source:
@@ -110,7 +168,7 @@ class Readback:
             value = self.makers.pop(name)()
         else:
             src = self.sources.pop(name)
-            host = np.empty(src.count, src.dtype) if out is None else out.reshape(-1)
+            host = HOST_ARRAYS.empty(src.count, src.dtype) if out is None else out.reshape(-1)
             cl.enqueue_copy(self.queue, host, src.buffer, src_offset=src.offset, is_blocking=True)
             value = src.finish(host)
             if not self.sources and self.pool is not None:

@@ -223,25 +223,27 @@ kernel void material_samples(global const int* vis_prims, int width, int height,
     const int b1 = min(b0 + VEC * SAMPLE_RUNS, npix);
     global const int* vis_prim = vis_prims + sample * npix;
     global const int* vis_prim0 = vis_prims;
-    int list[VEC * SAMPLE_RUNS];
+    int list[VEC * SAMPLE_RUNS], list_x[VEC * SAMPLE_RUNS], list_y[VEC * SAMPLE_RUNS];  /* pixel, column, row */
     int n = 0;
-    for (int p = b0; p < b1; ++p) {
-        const int v = vis_prim[p];
-        list[n] = p;
-        n += v != vis_prim0[p];
+    for (int p = b0, x = b0 % width, y = b0 / width; p < b1; ++p) {
+        list[n] = p; list_x[n] = x; list_y[n] = y;
+        n += vis_prim[p] != vis_prim0[p];
+        if (++x == width) { x = 0; ++y; }
     }
     const SceneV scene = SCENE_INIT(prims);
     const EnvMaps envmaps = ENV_INIT;
     for (int k = 0; k < n; k += VEC) {
         const int m = min(VEC, n - k);
-        intV pix;
-        for (int l = 0; l < VEC; ++l) LANE_I(pix, l) = list[k + min(l, m - 1)];
+        intV pix, px, py;
+        for (int l = 0; l < VEC; ++l) {
+            const int j = k + min(l, m - 1);
+            LANE_I(pix, l) = list[j]; LANE_I(px, l) = list_x[j]; LANE_I(py, l) = list_y[j];
+        }
         const intV pidx = GATHER_I(vis_prim, pix);
         intV fg = pidx >= 0;
 #if VEC == 1
         fg = fg ? 1 : 0;
 #endif
-        const intV py = pix / width, px = pix - py * width;
         const MaterialSample c = material_sample(&scene, pidx, fg, px, py, pix, -1, m, npix, width, height,
                                                  light_buf, ambient, ao, srgb_encode, camera, has_env,
                                                  env_background, &envmaps);

@@ -120,3 +120,34 @@ def test_pickled_frame_carries_its_arrays(make_renderer, demo):
     assert copy.readback.queue is None and not copy.readback.sources
     assert_same(read_all(copy), read_all(frame), "pickle round trip")
     assert copy.stats == frame.stats and copy.width == 72 and copy.height == 40
+
+
+def test_host_arrays_are_reused_only_when_nothing_references_them(make_renderer, demo):
+    """Large reads land in host buffers reused across frames (clrender.frame.HostArrays: no fresh
+    pages to fault in every frame), but never while any array made from one is alive: a view kept
+    from frame A (derived, so its base is the buffer itself) keeps A's values after B is read."""
+    from clrender.frame import HOST_ARRAYS, HostArrays
+    r = make_renderer(800, 600)                           # colour: 5.8 MB, above HostArrays.MIN_BYTES
+    cam = demo.camera
+    a = r.render(demo, cam)
+    kept = a.color.reshape(-1)[::3]                       # a derived view of A's colour
+    expect = kept.copy()
+    assert expect.max() > 0.0, "a black frame proves nothing"
+    del a
+    b = r.render(demo, moved(cam))
+    assert not np.shares_memory(b.color, kept)
+    np.testing.assert_array_equal(kept, expect)
+    assert not np.array_equal(b.color.reshape(-1)[::3], expect), "B must differ from A for this test"
+    del kept, b
+    r.render(demo, cam).color                             # warm: one buffer of this size is free now
+    count = len(HOST_ARRAYS.buffers)
+    for k in range(4):
+        c = r.render(demo, moved(cam) if k % 2 else cam)
+        if k % 2 == 0:                                    # a reused buffer holds this frame's values
+            np.testing.assert_array_equal(c.color.reshape(-1)[::3], expect)
+        del c
+    assert len(HOST_ARRAYS.buffers) == count, "a render loop reading its colour reuses the same buffers"
+    small = HostArrays(budget=0)
+    x = small.empty(2 << 20, np.float32)
+    y = small.empty(2 << 20, np.float32)
+    assert not np.shares_memory(x, y)

@@ -286,6 +286,22 @@ def test_atlas_beyond_device_memory_is_a_clear_error(device, monkeypatch):
         renderer.render(scene, CAMERA)
 
 
+def test_shadow_tile_size_changes_nothing_but_speed(device):
+    """The maps' raster tiles (shadow_tile_size 8, 16, 32; the default: 32 on CPUs) give the same
+    atlas bit for bit, sun cascades and spots (the masked case: test_alpha_masked_quad_...)."""
+    scene = spot_scene(size=256)
+    scene.set_sun(SUN_DIR, (1.0, 1.0, 1.0), shadow_map_size=256)
+    frames, atlases = {}, {}
+    for tile in (8, 16, 32, None):
+        r = clrender.Renderer(W, H, device=device.id, shadow_tile_size=tile)
+        frames[tile] = r.render(scene, CAMERA)
+        atlases[tile] = r.pipeline.shadow.atlas.get()
+    assert (frames[8].shadow < 0.5).any(axis=(0, 1)).all(), "every map must cast some shadow here"
+    for tile in (16, 32, None):
+        np.testing.assert_array_equal(atlases[tile], atlases[8], err_msg=str(tile))
+        np.testing.assert_array_equal(frames[tile].color, frames[8].color, err_msg=str(tile))
+
+
 def test_sun_cascades_are_kept_when_the_camera_moves_less_than_their_grid(device):
     """A cascade's side is on a ladder and its centre on a grid of 1/8 of the side
     (shadow_views.py), so a camera nudged by less than the grid gives the same cascades: every
@@ -369,7 +385,8 @@ def test_static_maps_are_reused_across_frames_and_match_fresh_renders(device):
 
 def test_shadow_options_are_validated():
     for bad in (dict(shadow_filter="pcf5"), dict(sun_cascades=0), dict(sun_cascades=5), dict(shadow_bias=-1),
-                dict(shadows=1), dict(shadow_atlas_max=8), dict(shadow_map_reuse="yes")):
+                dict(shadows=1), dict(shadow_atlas_max=8), dict(shadow_map_reuse="yes"), dict(shadow_tile_size=12),
+                dict(shadow_tile_size=64)):
         with pytest.raises(ValueError):
             clrender.RenderConfig.from_options(**bad)
     scene = occluder_scene()
