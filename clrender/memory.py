@@ -228,7 +228,8 @@ def _pipeline_buffers(px: int, tiles: int, config, scene) -> dict:
         out["shade.color"] = 0                              # the material pass owns the colour
         out["light_buffer"] = light_buffer_planes(config) * PRECISIONS[config.light_buffer_precision][0](
             0).itemsize * px
-        out["material.color+spread"] = 12 * px + (12 * px if config.msaa > 1 else 4)
+        out["material.color+spread+deltas"] = 12 * px + (12 * px if config.msaa > 1 else 4) + \
+            max(12 * (config.msaa - 2) * px, 4)
         if config.msaa > 1:              # one setup and binning, a visibility buffer per sub-sample
             t = scene.triangle_count if scene is not None else 0
             prims = structs.prim_dtype.itemsize * max(1024, t + t // 8)
@@ -248,7 +249,7 @@ def pixel_buffers(config) -> dict:
         out["light_buffer"] = light_buffer_planes(config) * PRECISIONS[config.light_buffer_precision][0](0).itemsize
         if config.msaa > 1:
             out["msaa_visibility"] = 4 * config.msaa + 4     # a prim index per sample, one depth scratch
-            out["msaa_resolve"] = 12
+            out["msaa_resolve"] = 12 + 12 * (config.msaa - 2)   # running sum, kept deltas (material.cl)
     out["gbuffer_aov_planes"] = 4 * (len(layout.PLANES) - len(planes))
     out["color"] = 12
     out["total"] = sum(out.values())

@@ -205,7 +205,8 @@ def test_bytes_per_pixel_stats(make_renderer):
     assert bpp["indexed"]["gbuffer_geometry_pass"] == 8 and bpp["indexed"]["gbuffer_aov_planes"] == 16
     assert bpp["prepass"]["gbuffer_geometry_pass"] == 16 and bpp["prepass"]["light_buffer"] == 20   # D.rgb, S, T
     assert bpp["prepass_bp"]["light_buffer"] == 16                                                 # D.rgb, S
-    assert bpp["msaa4"]["msaa_visibility"] == 20 and bpp["msaa4"]["msaa_resolve"] == 12   # 4 prim planes + depth
+    assert bpp["msaa4"]["msaa_visibility"] == 20 and bpp["msaa4"]["msaa_resolve"] == 36   # 4 prim planes + depth;
+    # sum + 2 samples' deltas
     assert bpp["msaa4"]["gbuffer_geometry_pass"] == 24 and bpp["msaa4"]["gbuffer_aov_planes"] == 0
     for b in bpp.values():
         assert b["total"] == sum(v for k, v in b.items() if k != "total")

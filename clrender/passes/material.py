@@ -48,6 +48,8 @@ class MaterialPass(RenderPass):
     def allocate(self, width, height):
         self.color = empty(self.queue, 3 * width * height, np.float32)
         self.spread = empty(self.queue, 3 * width * height if self.samples > 1 else 1, np.float32)
+        # c_s - c_0 of the samples before the last, for later samples that see the same prim
+        self.deltas = empty(self.queue, max(3 * (self.samples - 2) * width * height, 1), np.float32)
         self.no_ao = empty(self.queue, 1, np.float32)
 
     def publish(self, res):
@@ -70,4 +72,5 @@ class MaterialPass(RenderPass):
         for s in range(1, self.samples):
             self.samples_kernel(self.queue, gsize, (64,), vis.data, np.int32(w),
                                 np.int32(h), *scene_args(res, prims), *shading, np.int32(s), np.int32(self.samples),
-                                res["camera_params"].data, *env_kernel_args(res), self.color.data, self.spread.data)
+                                res["camera_params"].data, *env_kernel_args(res), self.color.data, self.spread.data,
+                                self.deltas.data)
