@@ -7,8 +7,12 @@
  */
 #ifndef CLRENDER_COVERAGE_H
 #define CLRENDER_COVERAGE_H
-#include "prim.h"
+#include "structs.h"
 #include "vec.h"
+
+#ifndef ORTHO
+#define ORTHO 0          /* 1: orthographic prims (setup.cl): inv_w holds vertex depths, interpolated linearly */
+#endif
 
 /* Prims whose bounding box is at most SMALL_EXTENT (24.8 units) on both axes have exact
  * 32-bit edge functions on any run inside their tile range: |d| < 2^14, |offset| < 2^15.

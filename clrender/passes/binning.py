@@ -9,14 +9,15 @@ from .base import Overflow, RenderPass, fill_zero, launch_1d, round_up, scan_for
 # Sponza's atrium (262k triangles, 1280x720, 8-pixel tiles) bins 293k entries, 1.1 per triangle
 # and 20 a tile: from 8 a tile its first frame overflowed and was redone. 64 a tile is at most
 # 4 bytes a pixel at 8x8 (against setup's 90 bytes a triangle); a heavier frame still grows and
-# redoes (overflows / grow).
+# redoes (overflows / grow). Larger tiles (the shadow maps' 32) get as much room per pixel.
 LIST_PER_TILE = 64
 
 
-def initial_list_capacity(tiles: int, n_tris: int | None = None) -> int:
+def initial_list_capacity(tiles: int, n_tris: int | None = None, tile: int = 8) -> int:
     """Tile-list entries a BinningPass starts from: 8 a tile, then (prepare_scene) room for the scene."""
     base = 8 * tiles
-    return base if n_tris is None else max(base, min(2 * int(n_tris), LIST_PER_TILE * tiles))
+    per_tile = LIST_PER_TILE * max(tile // 8, 1) ** 2
+    return base if n_tris is None else max(base, min(2 * int(n_tris), per_tile * tiles))
 
 
 class BinningPass(RenderPass):
@@ -48,7 +49,7 @@ class BinningPass(RenderPass):
     def prepare_scene(self, scene_res):
         if not hasattr(self, "tiles_x"):
             return                        # not allocated yet: allocate() starts the list
-        want = initial_list_capacity(self.tiles_x * self.tiles_y, scene_res["n_tris"])
+        want = initial_list_capacity(self.tiles_x * self.tiles_y, scene_res["n_tris"], self.tile)
         if want > self.list_capacity:
             self._allocate_list(want)
 

@@ -45,7 +45,12 @@ class _MapStages:
         for p in (self.setup, self.binning, self.raster):
             p.allocate(size, size)
         if scene_res is not None:
-            self.setup.prepare_scene(scene_res)
+            self.prepare_scene(scene_res)
+
+    def prepare_scene(self, scene_res):
+        """Room for the scene's prims and tile lists (no first-frame overflow and re-render)."""
+        self.setup.prepare_scene(scene_res)
+        self.binning.prepare_scene(scene_res)
 
 
 def _may_overlap(a, b) -> bool:
@@ -84,7 +89,7 @@ class ShadowPass(RenderPass):
         # Kept maps of another scene upload can never be reused: let its buffers go now.
         self.rendered = {k: kept for k, kept in self.rendered.items() if kept[1][0] is scene_res["positions"]}
         for st in self.stages.values():
-            st.setup.prepare_scene(scene_res)
+            st.prepare_scene(scene_res)
 
     def publish(self, res):
         layout = shadow_views.layout(res["shadow_lights"], res["sun"], res["camera"], res["width"] / res["height"],
