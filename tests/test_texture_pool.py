@@ -220,6 +220,6 @@ def test_tile_list_starts_from_the_scene_size(device):
     p.prepare_scene(Resources(buffers={}, values={"n_tris": 100}))
     assert p.list_capacity == 200
     p.prepare_scene(Resources(buffers={}, values={"n_tris": 10**6}))
-    assert p.list_capacity == LIST_PER_TILE * tiles                # bounded per tile
+    assert p.list_capacity == LIST_PER_TILE * 4 * tiles            # bounded per pixel: 64 per 8x8 pixels
     p.allocate(64, 48)
     assert p.list_capacity == 8 * tiles
