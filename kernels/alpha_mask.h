@@ -16,7 +16,6 @@
 
 typedef struct {
     global const uint* texels;
-    constant float* srgb_lut;         /* texel decode tables (structs.h LUT_*) */
     global const TexInfo* infos;
     global const TexLevel* levels;
     global const float* colors;       /* float4 per vertex (COLOR_0), read if has_colors */

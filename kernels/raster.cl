@@ -69,7 +69,7 @@ void raster_tiles(global const Prim* prims, global const int* tile_offsets, glob
                   global const int* tile_prims, int list_capacity, int tiles_x,
                   int width, int height, float far,
                   global const float* uvs, global const int* triangles, global const Material* materials,
-                  global const uint* texels, constant float* srgb_lut,
+                  global const uint* texels,
                   global const TexInfo* tex_infos, global const TexLevel* tex_levels,
                   global const float* colors, int n_vertices, int has_colors,
                   global float* vis_depth, int out_offset, int out_stride, global int* vis_prim)
@@ -78,7 +78,7 @@ void raster_tiles(global const Prim* prims, global const int* tile_offsets, glob
     const int tile = get_group_id(1) * tiles_x + get_group_id(0);
     const int cx0 = px0 * 256 + 128, cy0 = py0 * 256 + 128;    /* first pixel centre of the run */
     const int cx_last = cx0 + (VEC - 1) * 256, cy_last = cy0 + (RROWS - 1) * 256;
-    const Textures tx = { texels, srgb_lut, tex_infos, tex_levels, colors, n_vertices, has_colors };
+    const Textures tx = { texels, tex_infos, tex_levels, colors, n_vertices, has_colors };
 
     floatV best_depth[SAMPLES][RROWS];
     intV best_tri[SAMPLES][RROWS], best_prim[SAMPLES][RROWS];

@@ -10,7 +10,7 @@ from .base import RenderPass, empty
 class RasterPass(RenderPass):
     name = "raster"
     inputs = ("prims", "tile_counts", "tile_offsets", "tile_prims", "uvs", "triangles", "materials",
-              "texels", "srgb_lut", "tex_infos", "tex_levels", "colors", "n_vertices", "has_colors")
+              "texels", "tex_infos", "tex_levels", "colors", "n_vertices", "has_colors")
     outputs = ("vis_depth", "vis_prim")
 
     def __init__(self, device, config, ortho: bool = False, depth_only: bool = False, tile: int | None = None,
@@ -65,5 +65,5 @@ class RasterPass(RenderPass):
                     res["tile_prims"].data, np.int32(res["tile_list_capacity"]), np.int32(res["tiles_x"]),
                     np.int32(res["width"]), np.int32(res["height"]), np.float32(res["far"]),
                     res["uvs"].data, res["triangles"].data, res["materials"].data,
-                    res["texels"].data, res["srgb_lut"].data, res["tex_infos"].data, res["tex_levels"].data,
+                    res["texels"].data, res["tex_infos"].data, res["tex_levels"].data,
                     res["colors"].data, np.int32(res["n_vertices"]), np.int32(res["has_colors"]), *target)

@@ -50,7 +50,7 @@ class SampleGeometryPass(RenderPass):
     `msaa_vis_prims` (a plane of W·H prim indices per sample) over the shared `msaa_prims`, so
     the material pass can tell a sample that sees sample 0's prim from one that does not."""
     name = "msaa_geometry"
-    inputs = SetupPass.inputs + ("uvs", "texels", "srgb_lut", "tex_infos", "tex_levels", "colors", "n_vertices",
+    inputs = SetupPass.inputs + ("uvs", "texels", "tex_infos", "tex_levels", "colors", "n_vertices",
                                  "has_colors")
     outputs = ("msaa_vis_prims", "msaa_prims")
 

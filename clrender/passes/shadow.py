@@ -66,7 +66,7 @@ def _may_overlap(a, b) -> bool:
 
 class ShadowPass(RenderPass):
     name = "shadow"
-    inputs = ("positions", "triangles", "tri_material", "materials", "n_tris", "uvs", "texels", "srgb_lut",
+    inputs = ("positions", "triangles", "tri_material", "materials", "n_tris", "uvs", "texels",
               "tex_infos", "tex_levels", "colors", "n_vertices", "has_colors", "shadow_lights", "sun", "camera", "scene_bounds", "width", "height")
     outputs = ("shadow_atlas", "shadow_views", "shadow_layout", "shadow_view_count")
 
