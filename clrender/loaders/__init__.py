@@ -15,7 +15,7 @@ SUFFIXES = (".toml", ".gltf", ".glb", ".obj", ".ply", ".stl")
 __all__ = ["load_scene", "SUFFIXES"]
 
 
-def load_scene(path, default_environment: bool = True) -> Scene:
+def load_scene(path, default_environment: bool = True, allow=None) -> Scene:
     """Load a scene file into a Scene (world space, triangles in load order).
 
     A glTF file (.gltf/.glb) that lights nothing itself (no KHR_lights_punctual light instanced in
@@ -25,7 +25,16 @@ def load_scene(path, default_environment: bool = True) -> Scene:
     `scene.settings["default_environment"] = True`, so the CLI can say so. A glTF that defines
     lights keeps exactly its lights. `default_environment=False` turns this off (the TOML loader's
     mesh files: a TOML scene has the [environment] table). OBJ/PLY/STL and TOML files get no default
-    environment (`scene.environment` is None unless a TOML [environment] table sets one)."""
+    environment (`scene.environment` is None unless a TOML [environment] table sets one).
+
+    `allow`: folders outside the scene file's own folder that the files it references may lie in
+    (clrender.loaders.context; by default a scene reads only its own folder and data URIs)."""
+    from .context import loading
+    with loading(allow):
+        return _load(path, default_environment)
+
+
+def _load(path, default_environment: bool) -> Scene:
     try:
         path = Path(path)
     except TypeError:
