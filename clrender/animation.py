@@ -382,15 +382,20 @@ def from_document(doc, order: list, features: dict) -> Optional[Animation]:
         if not isinstance(anim, dict):
             raise doc.err(f"animations[{a}] must be an object")
         samplers = anim.get("samplers", [])
+        for key in ("samplers", "channels"):
+            if not isinstance(anim.get(key, []), list):
+                raise doc.err(f"animations[{a}].{key} must be an array, got {type(anim[key]).__name__}")
         cache: dict = {}
         for c, ch in enumerate(anim.get("channels", [])):
             target = ch.get("target", {}) if isinstance(ch, dict) else {}
+            if not isinstance(target, dict):
+                raise doc.err(f"animation {a} channel {c}: target must be an object, got {type(target).__name__}")
             path, node = target.get("path"), target.get("node")
             if node is None:     # KHR_animation_pointer: already warned as an unsupported extension
                 if not any("KHR_animation_pointer" in f for f in features):
                     features.setdefault(f"animation channels without a target node (path {path!r})", "ignored")
                 continue
-            if path not in PATHS and path != "weights":
+            if not isinstance(path, str) or (path not in PATHS and path != "weights"):
                 raise doc.err(f"animation {a} channel {c}: unknown target path {path!r}")
             doc.get("nodes", node, f"animation {a} channel {c}")
             targets = 0

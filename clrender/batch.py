@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import dataclasses
 import hashlib
+import itertools
 import os
 import socket
 import sys
@@ -36,7 +37,8 @@ import time as _time
 import uuid
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Iterable, Optional, Sequence
+from collections.abc import Sequence
+from typing import Iterable, Iterator, Optional
 
 from . import frames as _frames
 from .aov_io import aov_paths, write_outputs
@@ -49,6 +51,7 @@ DEFAULT_SIZE = (1280, 720)
 # frames it held are complete on disk and --resume renders them again.
 MANIFEST_INTERVAL_S = 1.0
 VERSION = "0.1.0"
+DASK_IN_FLIGHT = 1024            # frames submitted to a Dask cluster ahead of the finished ones
 
 
 @dataclass(frozen=True)
@@ -88,6 +91,7 @@ class FrameTask:
     device: Optional[str] = None
     view: Optional[Camera] = None       # replaces the scene camera (a dataset view): scene posed at `time`,
                                         # no motion (no previous camera, no previous pose)
+    allow: tuple = ()                   # folders outside the scene's own its references may read (absolute)
 
     def paths(self) -> list[Path]:
         if self.outputs.layout == "dataset":
@@ -139,18 +143,30 @@ def scene_config(scene, options: dict):
 
 
 # -- the worker side --------------------------------------------------------------------------
-_SCENES: dict = {}                       # path -> ((mtime_ns, size), Scene)
+_SCENES: dict = {}                       # (path, allowed folders) -> ((mtime_ns, size), Scene)
 _RENDERERS: dict = {}                    # (device id, w, h, config) -> Renderer
 
 
-def _scene(path: str):
+def _scene(path: str, allow: tuple = ()):
     from .loaders import load_scene
-    st = os.stat(path)
-    stamp = (st.st_mtime_ns, st.st_size)
-    cached = _SCENES.get(path)
-    if cached is None or cached[0] != stamp:
-        _SCENES[path] = cached = (stamp, load_scene(path))
+    key = (path, tuple(allow))           # a scene refused without a folder must not be served from one allowed with it
+    cached = _SCENES.get(key)
+    # Reloaded when the scene file or any file it read (MTL, textures, buffers, TOML meshes) changed
+    if cached is None or cached[0] != _stamps([path, *cached[1].source_files]):
+        scene = load_scene(path, allow=list(allow))
+        _SCENES[key] = cached = (_stamps([path, *scene.source_files]), scene)
     return cached[1]
+
+
+def _stamps(files) -> tuple:
+    out = []
+    for f in files:
+        try:
+            st = os.stat(f)
+            out.append((st.st_mtime_ns, st.st_size))
+        except OSError:
+            out.append(None)
+    return tuple(out)
 
 
 def _renderer(device_spec, width: int, height: int, config):
@@ -164,12 +180,22 @@ def _renderer(device_spec, width: int, height: int, config):
     return renderer
 
 
+def _spare_inputs(task: FrameTask, scene) -> None:
+    """ValueError when one of the task's outputs is a file its scene reads (the CLI checks the whole
+    job before it starts; this guards every frame, wherever and however it was planned)."""
+    files = {str(f) for f in getattr(scene, "source_files", ())} | {os.path.realpath(task.scene)}
+    for p in task.paths():
+        key = os.path.join(os.path.realpath(p.parent), p.name)
+        if key in files:
+            raise ValueError(f"output {p} would overwrite {key}, which {task.scene} reads")
+
+
 def render_task(task: FrameTask) -> dict:
     """Render one frame and write its outputs; returns its manifest record (status ok). Raises
     on a bad frame (the caller records the error)."""
     from .camera import with_overrides
     start = _time.perf_counter()
-    scene = _scene(task.scene)
+    scene = _scene(task.scene, task.allow)
     previous = scene.pose(task.time, None if task.view is not None else task.dt)    # a view: no motion (None)
     camera, o = task.view or scene.default_camera(), task.camera
     if task.view is None and o != CameraOverride():   # (scene.bounds() costs ~20 ms on Sponza: only when needed)
@@ -178,6 +204,7 @@ def render_task(task: FrameTask) -> dict:
         if previous is not None:
             previous = with_overrides(previous, bounds, o.eye, o.target, o.fov, o.ortho)
     width, height = scene_size(scene, task.width, task.height)
+    _spare_inputs(task, scene)
     from .device_probe import worker_device_spec
     renderer = _renderer(worker_device_spec(task.device), width, height, scene_config(scene, dict(task.options)))
     render_start = _time.perf_counter()
@@ -196,27 +223,91 @@ def render_task(task: FrameTask) -> dict:
 
 
 # -- the client side --------------------------------------------------------------------------
+class TaskPlan(Sequence):
+    """The tasks of scenes x frames, made when asked for: a job of a hundred million frames costs
+    nothing until its frames render (`--frames 0:100000000` starts with frame 0 at once, memory
+    flat). Scene-major order (every frame of the first scene, then the next scene's), like the list
+    it replaces; indexing and iterating give `FrameTask`s."""
+
+    def __init__(self, scenes: Sequence[str], frames: Sequence[int], fps: float, pattern: str, fields: dict):
+        self.scenes = [str(s) for s in scenes]
+        self.frames = frames                    # a range (or a list the caller gave)
+        self.fps, self.pattern, self.fields = fps, pattern, fields
+
+    def __len__(self) -> int:
+        return len(self.scenes) * len(self.frames)
+
+    def task(self, scene: str, frame: int) -> FrameTask:
+        time = frame / self.fps
+        image = _frames.image_path(self.pattern, scene, _frames.FrameTime(int(frame), time))
+        return FrameTask(scene=scene, frame=int(frame), time=time, dt=1.0 / self.fps, image=str(image), **self.fields)
+
+    def __getitem__(self, index):
+        if isinstance(index, slice):
+            return [self[i] for i in range(len(self))[index]]
+        n = len(self.frames)
+        index = range(len(self))[index]         # negative indices; IndexError past the end
+        return self.task(self.scenes[index // n], self.frames[index % n])
+
+    def __iter__(self):
+        for scene in self.scenes:
+            for frame in self.frames:
+                yield self.task(scene, frame)
+
+    def find(self, scene: str, frame: int) -> Optional[FrameTask]:
+        """The task of (scene, frame), or None when the job has no such frame."""
+        return self.task(scene, frame) if scene in self.scenes and frame in self.frames else None
+
+    @property
+    def lazy(self) -> bool:
+        """Whether the job is too large to make every task before it starts (frames.EAGER_CHECK_LIMIT)."""
+        return len(self) > _frames.EAGER_CHECK_LIMIT
+
+    def samples(self) -> list:
+        """All tasks of a small job; the first and last of each scene of a lazy one (whose pattern
+        has no field in its folders and a plain {frame}: they write the same folders and types)."""
+        if not self.lazy:
+            return list(self)
+        return [self.task(s, f) for s in self.scenes for f in dict.fromkeys((self.frames[0], self.frames[-1]))]
+
+    def folders(self) -> set:
+        """Every folder the job writes into (the samples' folders: see `samples`)."""
+        return {p.parent for t in self.samples() for p in t.paths()}
+
+    def output_paths(self, near=()) -> Iterator[Path]:
+        """Every output of a small job. Of a lazy one, the outputs of the tasks whose frame number is
+        written in one of the paths `near` (frames.frame_candidates): the only ones that can be one
+        of those files, since a lazy job's file names hold their frame number."""
+        if not self.lazy:
+            yield from (p for t in self for p in t.paths())
+            return
+        for scene in self.scenes:
+            for frame in sorted({f for p in near for f in _frames.frame_candidates(p)}):
+                if frame in self.frames:
+                    yield from self.task(scene, frame).paths()
+
+
 def plan_tasks(scenes: Sequence[str], frame_numbers: Iterable[int], out: str, fps: float = 24.0, **task_fields
-               ) -> tuple[list[FrameTask], Path]:
-    """The tasks of scenes x frames writing to `out` (a pattern, folder or file), and the
-    manifest path; ValueError for a bad pattern or two frames sharing a file."""
+               ) -> tuple[TaskPlan, Path]:
+    """The tasks of scenes x frames writing to `out` (a pattern, folder or file), as a lazy
+    `TaskPlan`, and the manifest path; ValueError for a bad pattern or two frames sharing a file
+    (frames.check_images)."""
     if not (fps > 0 and fps < float("inf")):
         raise ValueError(f"fps must be a positive number, got {fps!r}")
-    times = _frames.frame_times(list(frame_numbers), fps)
-    if not times:
+    frames = frame_numbers if isinstance(frame_numbers, range) else [int(f) for f in frame_numbers]
+    if not len(frames):
         raise ValueError("no frames to render")
     pattern = _frames.output_pattern(out, len(scenes) > 1)
-    images = _frames.plan_images(pattern, scenes, times)
-    tasks = [FrameTask(scene=str(s), frame=ft.frame, time=ft.time, dt=1.0 / fps, image=str(images[(s, ft.frame)]),
-                       **task_fields) for s in scenes for ft in times]
-    return tasks, manifest_folder(pattern) / MANIFEST_NAME
+    _frames.check_images(pattern, [str(s) for s in scenes], frames, fps)
+    return TaskPlan(scenes, frames, fps, pattern, task_fields), manifest_folder(pattern) / MANIFEST_NAME
 
 
 def job_signature(tasks: Sequence[FrameTask], fps: float) -> dict:
     """What must match for --resume to trust an earlier run's frames."""
     t = tasks[0]
     scenes = {}
-    for s in dict.fromkeys(task.scene for task in tasks):
+    names = tasks.scenes if isinstance(tasks, TaskPlan) else (task.scene for task in tasks)
+    for s in dict.fromkeys(names):
         st = os.stat(s)
         scenes[s] = {"bytes": st.st_size, "mtime_ns": st.st_mtime_ns}
     job = {"scenes": scenes, "fps": fps, "width": t.width, "height": t.height, "options": dict(t.options),
@@ -225,7 +316,8 @@ def job_signature(tasks: Sequence[FrameTask], fps: float) -> dict:
     # Only when used, so the signature of a plain frames job (and --resume of older folders) is unchanged.
     if t.outputs.layout != "stem":
         job.update(layout=t.outputs.layout, depth_scale=t.outputs.depth_scale)
-    if any(task.view is not None for task in tasks):     # repr of floats is exact: any changed number differs
+    if not isinstance(tasks, TaskPlan) and any(task.view is not None for task in tasks):
+        # repr of floats is exact: any changed number differs (a TaskPlan has no views)
         job["views"] = hashlib.sha256(repr([task.view for task in tasks]).encode()).hexdigest()
     return job
 
@@ -239,10 +331,13 @@ def _error_line(error: BaseException) -> str:
 
 
 def _local_results(tasks):
+    from .interrupt import raise_if_interrupted
     for task in tasks:
+        start = _time.monotonic()
         try:
             yield task, render_task(task), None
         except Exception as exc:        # one bad frame must not lose the others
+            raise_if_interrupted(start)   # ... but a failure a Ctrl-C caused ends the job
             yield task, None, exc
 
 
@@ -250,15 +345,31 @@ def _dask_results(tasks, client, resources, retries: int):
     from distributed import as_completed
 
     from .dask_plugin import WarmupPlugin
+    pending = iter(tasks)                   # `tasks` may be a generator (run_tasks' todo)
+    first = next(pending, None)
+    if first is None:
+        return
     # Every worker, and any that joins later, builds the kernels once before its first frame.
-    if tasks:
-        client.register_plugin(WarmupPlugin(tasks[0].device, dict(tasks[0].options)))
-    futures = {}
-    for task in tasks:
-        key = f"clrender-frame-{uuid.uuid4().hex[:8]}-{Path(task.scene).stem}-{task.frame}"
-        futures[client.submit(render_task, task, key=key, pure=False, retries=retries, resources=resources)] = task
-    for future in as_completed(futures):
-        task = futures[future]
+    client.register_plugin(WarmupPlugin(first.device, dict(first.options)))
+    # At most DASK_IN_FLIGHT frames are submitted ahead: a job of millions of frames neither plans
+    # nor submits them all up front; each finished frame lets the next one in.
+    pending = itertools.chain([first], pending)
+    futures: dict = {}
+    completed = as_completed()
+
+    def submit_next() -> None:
+        task = next(pending, None)
+        if task is not None:
+            key = f"clrender-frame-{uuid.uuid4().hex[:8]}-{Path(task.scene).stem}-{task.frame}"
+            future = client.submit(render_task, task, key=key, pure=False, retries=retries, resources=resources)
+            futures[future] = task
+            completed.add(future)
+
+    for _ in range(DASK_IN_FLIGHT):
+        submit_next()
+    for future in completed:
+        task = futures.pop(future)
+        submit_next()
         try:
             yield task, future.result(), None
         except Exception as exc:
@@ -295,17 +406,68 @@ class _Progress:
             self.bar.close()
 
 
+def _complete(tasks, manifest) -> tuple:
+    """(scene, frame) of the tasks the manifest shows complete, in job order. Of a TaskPlan only the
+    frames the manifest lists are looked at: the manifest is as large as the frames done, the job
+    may be far larger."""
+    if not isinstance(tasks, TaskPlan):
+        return tuple((t.scene, t.frame) for t in tasks if manifest.is_done(t.scene, t.frame, t.paths()))
+    position = ((lambda f: tasks.frames.index(f)) if isinstance(tasks.frames, range)
+                else {f: i for i, f in enumerate(tasks.frames)}.__getitem__)
+    done = []
+    for scene, frame in list(manifest.records):
+        task = tasks.find(scene, frame)
+        if task is not None and manifest.is_done(scene, frame, task.paths()):
+            done.append((tasks.scenes.index(scene), position(frame), scene, frame))
+    return tuple((scene, frame) for *_, scene, frame in sorted(done))
+
+
+class _FinishedImages(Sequence):
+    """The images of a job's tasks that did not fail, in job order, made as they are read."""
+
+    def __init__(self, tasks, failed: set):
+        self.tasks, self.failed = tasks, failed
+
+    def __iter__(self):
+        return (Path(t.image) for t in self.tasks if (t.scene, t.frame) not in self.failed)
+
+    def __len__(self) -> int:
+        return len(self.tasks) - len(self.failed)
+
+    def __getitem__(self, index):
+        if isinstance(index, slice):
+            return list(self)[index]
+        index = range(len(self))[index]
+        return next(p for i, p in enumerate(self) if i == index)
+
+
+def _remove_leftovers(tasks, manifest_path) -> None:
+    """--resume: remove the temporary files a killed run left beside the job's outputs (each folder
+    once; frames found complete are not rewritten, so their folders would otherwise keep them)."""
+    from .aov_io import remove_stale_temps
+    folders = {Path(manifest_path).parent}
+    if isinstance(tasks, TaskPlan):         # its folders without making every task
+        folders.update(tasks.folders())
+    else:
+        for task in tasks:
+            folders.update(p.parent for p in task.paths())
+    for folder in folders:
+        remove_stale_temps(folder, force=True)
+
+
 def run_tasks(tasks: Sequence[FrameTask], manifest_path, fps: float = 24.0, client=None, resume: bool = False,
               quiet: bool = True, resources: Optional[dict] = None, retries: int = 0) -> BatchResult:
     """Render `tasks` (skipping, with `resume`, those the manifest shows complete), in this
     process or on `client`'s Dask cluster, keeping the manifest and a progress bar."""
     start = _time.perf_counter()
     manifest = Manifest.open(manifest_path, job_signature(tasks, fps), VERSION, resume)
+    if resume:
+        _remove_leftovers(tasks, manifest.path)
     run = uuid.uuid4().hex[:12]
-    todo = [t for t in tasks if not (resume and manifest.is_done(t.scene, t.frame, t.paths()))]
-    queued = {(t.scene, t.frame) for t in todo}
-    skipped = tuple((t.scene, t.frame) for t in tasks if (t.scene, t.frame) not in queued)
-    progress = _Progress(len(todo), quiet)
+    skipped = _complete(tasks, manifest) if resume else ()
+    skip = set(skipped)
+    todo = (t for t in tasks if (t.scene, t.frame) not in skip)     # lazily: a TaskPlan's tasks as they render
+    progress = _Progress(len(tasks) - len(skipped), quiet)
     for scene, frame in skipped:
         manifest.mark_skipped(scene, frame, run)
     if skipped:
@@ -330,8 +492,9 @@ def run_tasks(tasks: Sequence[FrameTask], manifest_path, fps: float = 24.0, clie
     finally:
         manifest.save()
         progress.close()
-    done = {(t.scene, t.frame) for t in tasks} - {(s, f) for s, f, _ in failed}
-    images = tuple(Path(t.image) for t in tasks if (t.scene, t.frame) in done)
+    images = _FinishedImages(tasks, {(s, f) for s, f, _ in failed})
+    if not isinstance(tasks, TaskPlan):
+        images = tuple(images)
     return BatchResult(tuple(rendered), skipped, tuple(failed), manifest.path, images,
                        _time.perf_counter() - start)
 
@@ -339,13 +502,17 @@ def run_tasks(tasks: Sequence[FrameTask], manifest_path, fps: float = 24.0, clie
 def render_frames(scene_path, frames: Iterable[int], out, client=None, *, fps: float = 24.0,
                   width: Optional[int] = None, height: Optional[int] = None, aovs: Sequence[str] = (),
                   bit_depth: int = 8, exr: bool = False, device: Optional[str] = None, resume: bool = False,
-                  quiet: bool = True, resources: Optional[dict] = None, **options) -> BatchResult:
+                  quiet: bool = True, resources: Optional[dict] = None, allow: Sequence = (),
+                  **options) -> BatchResult:
     """Render frames `frames` (numbers; frame f at t = f / fps) of one scene file into `out` (a
     pattern with {name}/{frame}/{time}, or a folder: out/<name>_<frame:04d>.png), on `client`
-    (a dask.distributed Client) or in this process. `options` are RenderConfig options."""
+    (a dask.distributed Client) or in this process. `options` are RenderConfig options; `allow`:
+    folders outside the scene file's own that its references may read (load_scene's `allow`)."""
     if not Path(scene_path).is_file():
         raise FileNotFoundError(f"{scene_path}: file not found")
     tasks, manifest_path = plan_tasks([str(scene_path)], frames, str(out), fps, width=width, height=height,
                                       outputs=Outputs(tuple(aovs), bit_depth, exr),
-                                      options=tuple(sorted(options.items())), device=device)
+                                      options=tuple(sorted(options.items())), device=device,
+                                      allow=tuple(str(Path(p).resolve()) for p in
+                                                  ([allow] if isinstance(allow, (str, os.PathLike)) else allow)))
     return run_tasks(tasks, manifest_path, fps, client=client, resume=resume, quiet=quiet, resources=resources)

@@ -36,10 +36,11 @@ import dataclasses
 import json
 import os
 import sys
+import tempfile
 import time
 import warnings
 from pathlib import Path
-from typing import Optional, Sequence
+from typing import Iterable, Optional, Sequence
 
 import numpy as np
 
@@ -61,9 +62,19 @@ def _note(args, message: str) -> None:
         print(message, file=sys.stderr, flush=True)
 
 
-def _load(path: str):
+def _load(path: str, args=None):
+    """load_scene with the folders --allow-outside lets the scene's references reach."""
     from .loaders import load_scene
-    return load_scene(path)
+    return load_scene(path, allow=allowed_folders(args))
+
+
+def allowed_folders(args) -> tuple:
+    """--allow-outside folders (each must exist: a typo must not silently allow nothing)."""
+    folders = tuple(getattr(args, "allow_outside", None) or ())
+    for folder in folders:
+        if not Path(folder).is_dir():
+            raise CLIError(f"--allow-outside {folder}: not a folder")
+    return tuple(str(Path(folder).resolve()) for folder in folders)     # absolute: tasks travel to workers
 
 
 def _scene_config(scene, options):
@@ -204,6 +215,68 @@ def _check_distinct(scenes: list[str], images: list[Path], aovs: Sequence[str], 
             owner[key] = scene
 
 
+def _output_key(path, parents: dict) -> str:
+    """An output's real folder + its name: what os.replace overwrites (a symlink there is replaced
+    itself, and a scene reading through it loses it just the same)."""
+    path = Path(path)
+    parent = parents.get(path.parent)
+    if parent is None:
+        parent = parents[path.parent] = os.path.realpath(path.parent)
+    return os.path.join(parent, path.name)
+
+
+def input_files(scenes: Sequence, extra: Sequence = ()) -> dict:
+    """{real path: scene} of every file the loaded `scenes` read (Scene.source_files: the scene
+    file, its buffers, textures, MTL, TOML meshes, environment) and of `extra` ((path, what) pairs:
+    --environment, --cameras)."""
+    inputs: dict = {}
+    for scene in scenes:
+        for f in [scene.source, *getattr(scene, "source_files", ())]:
+            for key in {os.path.realpath(f), _output_key(f, {})}:
+                inputs.setdefault(key, scene.source)
+    for path, what in extra:
+        if path:
+            for key in {os.path.realpath(path), _output_key(path, {})}:
+                inputs.setdefault(key, what)
+    return inputs
+
+
+class OutputOverInput(CLIError):
+    """An output path is a file the job reads."""
+
+
+def check_outputs_spare_inputs(outputs: Iterable, inputs: dict) -> None:
+    """CLIError, before anything renders, when an output would be written over a file the job
+    reads: `clrender render scenes/crate.obj -o scenes/` would replace crate.png, the OBJ's texture."""
+    if not inputs:
+        return
+    parents: dict = {}
+    for output in outputs:
+        key = _output_key(output, parents)
+        if key in inputs:
+            owner = inputs[key]
+            what = "the input scene" if os.path.realpath(owner) == key else f"which {owner} reads"
+            raise OutputOverInput(f"output {output} would overwrite {key}, {what}; choose another "
+                                  f"output folder or name")
+
+
+def check_writable(folders, outputs_of: Optional[dict] = None) -> None:
+    """Create each output folder and write a probe file in it: an unwritable output fails before
+    anything renders, naming the output (`outputs_of`: folder -> one output in it) or folder."""
+    for folder in sorted(set(map(Path, folders))):
+        what = f"output {outputs_of[folder]}" if outputs_of and folder in outputs_of else f"output folder {folder}"
+        try:
+            folder.mkdir(parents=True, exist_ok=True)
+            fd, probe = tempfile.mkstemp(prefix=".clrender-probe-", dir=folder)
+            os.close(fd)
+            os.unlink(probe)
+        except OSError as exc:
+            reason = exc.strerror or str(exc)
+            if isinstance(exc, (FileExistsError, NotADirectoryError)):
+                reason = f"{folder} is not a folder" if folder.exists() else "a parent is not a folder"
+            raise CLIError(f"{what} is not writable: {reason}") from None
+
+
 # ---------------------------------------------------------------------------------------------
 # commands
 def check_scene_files(scenes) -> None:
@@ -224,6 +297,7 @@ def render_options(args) -> dict:
     """The RenderConfig options given on the command line, each checked (CLIError naming its flag)."""
     from .renderer import RenderConfig
     check_scene_files(args.scenes)
+    allowed_folders(args)                          # --allow-outside: before anything renders
     options = {name: value for name, value in (
         ("tile_size", args.tile_size), ("light_tile_size", args.light_tile_size),
         ("light_culling", args.light_culling), ("pipeline", args.pipeline), ("shading", args.shading),
@@ -295,6 +369,20 @@ def cmd_render(args) -> int:
         _note(args, f"{PROG}: note: --fps has no effect on a still without --video")
     _check_distinct(scenes, images, args.aov, exr, video, args.aov_sheet)
     environment = environment_option(args)
+    outputs = [p for image in images for p in (image, *aov_paths(image, args.aov, exr, args.aov_sheet))]
+    outputs += [Path(video)] if video is not None else []
+    check_writable([p.parent for p in outputs], {p.parent: p for p in reversed(outputs)})
+    env_file = getattr(args, "environment", None)
+    extra = [(env_file, "--environment")] if env_file and Path(env_file).is_file() else []
+    check_outputs_spare_inputs(outputs, input_files([], extra))
+    if len(scenes) > 1 and any(os.path.lexists(p) for p in outputs):
+        # An output of one scene may be a file a later scene reads: know every scene's files first
+        # (only when an output exists already: a file not there yet cannot be anyone's input)
+        for scene_path in scenes:
+            try:
+                check_outputs_spare_inputs(outputs, input_files([_load(scene_path, args)]))
+            except (ValueError, OSError):        # the render loop reports it, in order
+                pass
     written: list[Path] = []
     # The device (its probe, on a first run) and the kernels of the flags' configuration get ready
     # on another thread while the first scene loads: both are mostly waiting (a child process, the
@@ -307,8 +395,10 @@ def cmd_render(args) -> int:
     failures = 0
     n = len(scenes)
     for index, (scene_path, image) in enumerate(zip(scenes, images), 1):
+        scene_start = time.monotonic()
         try:
-            scene = _load(scene_path)
+            scene = _load(scene_path, args)
+            check_outputs_spare_inputs(outputs, input_files([scene], extra))
             if scene.animation is not None:       # a still of an animated scene: posed at --time
                 scene.pose(args.time)
             apply_environment(scene, args, environment)
@@ -326,7 +416,9 @@ def cmd_render(args) -> int:
             write_outputs(frame, image, args.aov, bit_depth=bit_depth, exr=exr, sheet=args.aov_sheet)
             written.append(image)
         except (CLIError, ValueError, OSError) as exc:     # SceneError is a ValueError
-            if n == 1 or _debug():
+            from .interrupt import raise_if_interrupted
+            raise_if_interrupted(scene_start)      # a failure a Ctrl-C caused ends the job
+            if n == 1 or _debug() or isinstance(exc, OutputOverInput):     # the whole job's error
                 raise
             failures += 1
             message = _one_line(exc)
@@ -415,13 +507,16 @@ def cmd_info(args) -> int:
     path = Path(args.scene)
     if not path.exists():
         raise CLIError(f"{args.scene}: file not found")
-    scene = _load(args.scene)
+    scene = _load(args.scene, args)
     summary = scene.summary()
     summary["settings"] = scene.settings
-    summary["object_list"] = [dataclasses.asdict(o) for o in scene.objects]    # Frame.object_id's index
+    # Frame.object_id's index; a shallow dict: asdict would deep-copy `extras` recursively
+    summary["object_list"] = [{f.name: getattr(o, f.name) for f in dataclasses.fields(o)} for o in scene.objects]
     from .gltf_info import empty_details, format_details, gltf_details, is_gltf
     gltf = is_gltf(path)
-    summary.update(gltf_details(path) if gltf else empty_details())   # always present: [] unless glTF
+    from .loaders.context import loading
+    with loading(allowed_folders(args)):         # gltf_details reads the buffers again, as confined
+        summary.update(gltf_details(path) if gltf else empty_details())   # always present: [] unless glTF
     if args.json:
         print(json.dumps(summary, indent=2, default=_json_default))
         return 0
@@ -475,7 +570,16 @@ def _json_default(obj):
 
 # ---------------------------------------------------------------------------------------------
 def _debug() -> bool:
-    return os.environ.get(ENV_DEBUG, "").strip() not in ("", "0")
+    """CLRENDER_DEBUG=1 or CLRENDER_LOG=debug: tracebacks instead of one-line errors."""
+    return (os.environ.get(ENV_DEBUG, "").strip() not in ("", "0")
+            or os.environ.get("CLRENDER_LOG", "").strip().lower() == "debug")
+
+
+def _quiet_unraisable() -> None:
+    """Errors Python can only print as "Exception ignored in ..." (a writer's clean-up in __del__
+    after a full disk: 3-11 tracebacks) say nothing the error line has not: hidden unless debugging."""
+    if not _debug():
+        sys.unraisablehook = lambda unraisable: None
 
 
 def _one_line(exc: BaseException) -> str:
@@ -530,7 +634,10 @@ def _log_level() -> None:
 
 def main(argv: Optional[Sequence[str]] = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
+    from . import interrupt
+    interrupt.install()                          # a failure a Ctrl-C caused ends as the interrupt
     _quiet_compiler_logs()
+    _quiet_unraisable()
     _log_level()
     try:
         args = build_parser().parse_args(_join_vector_options(argv))

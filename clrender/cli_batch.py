@@ -6,14 +6,13 @@ from __future__ import annotations
 import logging
 import os
 import sys
-import tempfile
 from contextlib import contextmanager
 from pathlib import Path
 
 from . import frames as _frames
 from .aov_io import write_video
 from .batch import CameraOverride, Outputs, plan_tasks, run_tasks
-from .cli import PROG, CLIError, _note, _one_line, check_output_options
+from .cli import PROG, CLIError, _note, _one_line, allowed_folders, check_output_options
 
 SCHEDULER_TIMEOUT_S = 10
 
@@ -33,7 +32,8 @@ def _frame_numbers(args, fps: float) -> range:
             return range(0, 1)
         if args.frames.strip().lower() == "all":
             from .loaders import load_scene
-            durations = [getattr(load_scene(s).animation, "duration", None) for s in args.scenes]
+            durations = [getattr(load_scene(s, allow=allowed_folders(args)).animation, "duration", None)
+                         for s in args.scenes]
             return _frames.animation_frames(max((d for d in durations if d), default=None), fps)
         return _frames.parse_frames(args.frames)
     except ValueError as exc:
@@ -42,15 +42,9 @@ def _frame_numbers(args, fps: float) -> range:
 
 def _check_writable(folders) -> None:
     """Create each output folder and write a probe file in it: an unwritable output fails now,
-    not after the first frame has rendered."""
-    for folder in sorted(set(folders)):
-        try:
-            folder.mkdir(parents=True, exist_ok=True)
-            fd, probe = tempfile.mkstemp(prefix=".clrender-probe-", dir=folder)
-            os.close(fd)
-            os.unlink(probe)
-        except OSError as exc:
-            raise CLIError(f"output folder {folder} is not writable: {exc.strerror or exc}") from None
+    not after the first frame has rendered (clrender.cli.check_writable)."""
+    from .cli import check_writable
+    check_writable(folders)
 
 
 @contextmanager
@@ -135,16 +129,25 @@ def cmd_render_frames(args, options: dict) -> int:
         tasks, manifest_path = plan_tasks(args.scenes, numbers, args.output, fps, width=args.width,
                                           height=args.height, outputs=Outputs(tuple(args.aov), args.bit_depth, args.exr,
                                                           args.aov_sheet),
-                                          options=tuple(sorted(options.items())), camera=camera, device=args.device)
+                                          options=tuple(sorted(options.items())), camera=camera, device=args.device,
+                                          allow=allowed_folders(args))
     except ValueError as exc:
         raise CLIError(str(exc)) from None
-    check_output_options(args, [t.image for t in tasks])
-    inputs = {os.path.realpath(s) for s in args.scenes}
-    for task in tasks:
-        for p in task.paths():
-            if os.path.realpath(p) in inputs:
-                raise CLIError(f"output {p} would overwrite an input scene")
-    _check_writable([Path(t.image).parent for t in tasks] + [manifest_path.parent])
+    check_output_options(args, [t.image for t in tasks.samples()])     # a lazy plan: first and last frames
+    # Every file the scenes read (loaded here once: an in-process job renders from this cache) must
+    # survive the job: no image, AOV, manifest or video may be written over one
+    from .batch import _scene
+    from .cli import check_outputs_spare_inputs, input_files
+    scenes = []
+    for s in args.scenes:
+        try:
+            scenes.append(_scene(s, allowed_folders(args)))
+        except (ValueError, OSError) as exc:
+            raise CLIError(_one_line(exc) if s in str(exc) else f"{s}: {_one_line(exc)}") from None
+    extra = [manifest_path] + ([Path(args.video)] if args.video else [])
+    inputs = input_files(scenes)        # a lazy plan: only the frames whose numbers the inputs' names hold
+    check_outputs_spare_inputs([*tasks.output_paths(near=inputs), *extra], inputs)
+    _check_writable([*tasks.folders(), manifest_path.parent])
     result = run_job(args, tasks, manifest_path, fps, f"{len(tasks)} frame(s) of {len(args.scenes)} scene(s)")
     if result.failed:
         print(f"{PROG}: error: {len(result.failed)} of {len(tasks)} frames failed"

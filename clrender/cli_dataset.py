@@ -8,7 +8,6 @@ view renders, and every view renders from the camera the reader parses from them
 from __future__ import annotations
 
 import math
-import os
 import sys
 from pathlib import Path
 
@@ -16,9 +15,9 @@ import numpy as np
 
 from .aov_io import atomic_write
 from .batch import VERSION, FrameTask, Outputs, job_signature, scene_size
-from .cli import PROG, CLIError, _note, check_output_options, render_options
-from .cli_parser import (_aov_list, _finite_float, _fov, _positive_float, _positive_int, add_batch_options,
-                         add_render_options)
+from .cli import PROG, CLIError, _note, allowed_folders, check_output_options, render_options
+from .cli_parser import (_aov_list, _finite_float, _fov, _non_negative_int, _positive_float, _positive_int,
+                         add_batch_options, add_render_options)
 from .dataset import (DEFAULT_ELEVATION_DEG, DEFAULT_FOV_DEG, FORMATS, LAYOUTS, export_documents, file_cameras,
                       layout_cameras, parse_documents, read_camera_file)
 from .dataset_outputs import PNG16_MAX, view_files
@@ -45,7 +44,7 @@ def add_parser(sub) -> None:
     d.add_argument("--layout", choices=LAYOUTS,
                    help="orbit: a ring at --elevation; sphere: Fibonacci points over the upper hemisphere; "
                         "random: uniform directions from --seed (default orbit)")
-    d.add_argument("--seed", type=int, metavar="S", help="with --layout random: the generator's seed (default 0)")
+    d.add_argument("--seed", type=_non_negative_int, metavar="S", help="with --layout random: the generator's seed (default 0)")
     d.add_argument("--elevation", type=_finite_float, metavar="DEG",
                    help=f"with --layout orbit: the ring's elevation in degrees (default {DEFAULT_ELEVATION_DEG:g})")
     d.add_argument("--fov", type=_fov, metavar="DEG",
@@ -79,12 +78,29 @@ def _layout_settings(args) -> dict:
     return {"layout": layout, "elevation_deg": elevation, "seed": 0 if args.seed is None else args.seed}
 
 
+# What one view costs before the first renders (measured: 5-7 KB): its camera, the camera files'
+# text, the view parsed back from them, its task and output paths. A dataset's camera files list
+# every view and are written before rendering, so its views are planned up front, not lazily: their
+# number is checked against the memory budget (clrender.loaders.budget) before any is made.
+DATASET_VIEW_BYTES = 8 << 10
+
+
+def _check_view_budget(views: int) -> None:
+    from .loaders import budget
+    try:
+        budget.Budget().check(views * DATASET_VIEW_BYTES, "--views", f"{views} views (their cameras, camera files "
+                                                                       f"and tasks, planned before rendering)")
+    except ValueError as exc:           # BudgetError, or a bad CLRENDER_MAX_MEMORY
+        raise CLIError(str(exc)) from None
+
+
 def _cameras(args, scene, bounds):
     """(source cameras, width, height, what the dataset.json records of them): a layout's or a file's."""
     fov = args.fov or DEFAULT_FOV_DEG
     if args.cameras is None:
         if args.views is None:
             raise CLIError("give --views N (or --cameras FILE)")
+        _check_view_budget(args.views)
         settings = _layout_settings(args)
         width, height = scene_size(scene, args.width, args.height)
         cameras = layout_cameras(settings["layout"], args.views, bounds, width, height, fov,
@@ -98,6 +114,7 @@ def _cameras(args, scene, bounds):
         cf = read_camera_file(args.cameras)
         if args.views is not None and args.views != len(cf.entries):
             raise CLIError(f"--views {args.views}: {args.cameras} has {len(cf.entries)} cameras")
+        _check_view_budget(len(cf.entries))
         if args.width is None and args.height is None and cf.width:
             width, height = cf.width, cf.height              # the size the file's K are given for
         else:
@@ -131,7 +148,8 @@ def cmd_dataset(args) -> int:
     root = Path(args.output)
     if root.exists() and not root.is_dir():
         raise CLIError(f"output {root} is not a folder")
-    scene = _scene(scene_path)                      # the batch's cache: an in-process job loads it once
+    allow = allowed_folders(args)
+    scene = _scene(scene_path, allow)               # the batch's cache: an in-process job loads it once
     if scene.animation is not None:
         scene.pose(0.0)
     bounds = scene.bounds()
@@ -148,15 +166,15 @@ def cmd_dataset(args) -> int:
     views = parse_documents(docs, root)            # the reader's cameras, from the very texts written below
     if "depth" in aovs:
         _check_depth_range(views, bounds, args.depth_scale)
-    inputs = {os.path.realpath(p) for p in (scene_path, args.cameras) if p}
+    from .cli import check_outputs_spare_inputs, input_files
+    inputs = input_files([scene], [(args.cameras, f"--cameras {args.cameras}")])   # and what the scene reads
     outputs = Outputs(aovs, exr=args.exr, layout="dataset", depth_scale=args.depth_scale)
     tasks = [FrameTask(scene=scene_path, frame=v.index, time=0.0, dt=1.0 / FPS, image=str(v.image), outputs=outputs,
                        width=width, height=height, options=tuple(sorted(options.items())), device=args.device,
-                       view=v.camera) for v in views]
-    for path in [root / rel for rel in docs] + [p for t in tasks for p in t.paths()]:
-        if os.path.realpath(path) in inputs:
-            raise CLIError(f"output {path} would overwrite an input file")
+                       view=v.camera, allow=allow) for v in views]
     manifest_path = root / MANIFEST_NAME
+    check_outputs_spare_inputs([*(root / rel for rel in docs), *(p for t in tasks for p in t.paths()), manifest_path],
+                               inputs)
     _check_writable({Path(p).parent for t in tasks for p in t.paths()} | {(root / rel).parent for rel in docs})
     if args.resume:                                  # before the camera files are rewritten
         try:

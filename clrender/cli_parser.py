@@ -94,10 +94,18 @@ def _join_vector_options(argv: list[str]) -> list[str]:
     return out
 
 
+def add_allow_outside(p) -> None:
+    p.add_argument("--allow-outside", action="append", default=[], metavar="PATH",
+                   help="let the scene's references (textures, buffers, material libraries, meshes, "
+                        "environments) read files in folder PATH too; by default a scene file reads only "
+                        "files in its own folder (repeatable)")
+
+
 def add_render_options(p) -> None:
     """The size, device and RenderConfig flags `render` and `dataset` share (cli.render_options reads them)."""
     from .renderer import (LIGHT_BUFFER_PRECISION, LIGHT_BUFFER_SPECULAR, LIGHT_CULLING, PIPELINES, SHADING,
                            TRANSPARENCY)
+    add_allow_outside(p)
     p.add_argument("--width", type=_positive_int, metavar="W",
                    help="image width (default: the scene's [render] width, else 1280)")
     p.add_argument("--height", type=_positive_int, metavar="H",
@@ -277,4 +285,5 @@ def build_parser() -> argparse.ArgumentParser:
                                    "extensions.")
     i.add_argument("scene", metavar="SCENE")
     i.add_argument("--json", action="store_true", help="print JSON instead of text")
+    add_allow_outside(i)
     return parser

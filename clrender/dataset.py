@@ -127,6 +127,8 @@ def read_camera_file(path) -> CameraFile:
     except (ValueError, tomllib.TOMLDecodeError) as exc:
         raise ValueError(f"--cameras {path}: not valid {'TOML' if path.suffix.lower() == '.toml' else 'JSON'} "
                          f"({str(exc).splitlines()[0]})") from None
+    except RecursionError:      # the parsers recurse per level of nesting
+        raise ValueError(f"--cameras {path}: nested too deeply to be a camera file") from None
     if isinstance(data, list):
         data = {"cameras": data}
     entries = data.get("cameras") if isinstance(data, dict) else None

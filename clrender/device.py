@@ -183,7 +183,14 @@ class LazyKernel:
 
 
 class Device:
-    """One OpenCL device with its context, queue and program cache."""
+    """One OpenCL device with its context, queue and program cache.
+
+    Every Renderer on the device shares them, and with them state that is not safe to touch from
+    two threads at once: the kernel objects (clSetKernelArg then enqueue is not atomic), pyopencl's
+    own per-context kernels (fills, copies), the scene uploads cached per device (scene_gpu), and
+    the in-order queue whose order is what makes one frame's buffers consistent. `lock` serialises
+    that: a Renderer holds it for each call that enqueues work (render, lights_at, posed_vertices,
+    building its pipeline). One queue orders the device's work anyway, so little is lost."""
 
     _programs: dict = {}
     build_count = 0                     # programs built from source or binary in this process (tests)
@@ -193,6 +200,7 @@ class Device:
         self.cl_device = info.cl_device
         self.context = cl.Context([self.cl_device])
         self.queue = cl.CommandQueue(self.context, properties=cl.command_queue_properties.PROFILING_ENABLE)
+        self.lock = threading.RLock()   # see the class doc: held while enqueuing on this device
         self.base_options = capabilities.build_options(self.cl_device)
         self.built: list = []           # (ProgramSpec, seconds) in build order, this device
         # PoCL: no program binaries (see _binary_name); tests turn them on to test the store itself
@@ -254,6 +262,10 @@ class Device:
             try:
                 prog = cl.Program(self.context, path.read_text()).build(options=opts)
             except cl.Error as exc:
+                # A Ctrl-C reaches the compiler's child processes too: their failure is the interrupt,
+                # not a kernel error (nothing was stored, so the program cache stays clean)
+                from .interrupt import raise_if_interrupted
+                raise_if_interrupted(start)
                 first = next((ln.strip() for ln in str(exc).splitlines() if "error" in ln.lower()), "")
                 raise DeviceError(f"building kernels/{spec} failed on {self.name}: "
                                   f"{first or str(exc).splitlines()[0]}") from None

@@ -54,7 +54,13 @@ def probe_error(info: DeviceInfo) -> Optional[str]:
     if isinstance(record, dict) and "error" in record:
         answer = record["error"]
     else:
+        import time
+        from .interrupt import raise_if_interrupted
+        start = time.monotonic()
         answer = _ask_child(info)
+        # A Ctrl-C kills the child's compiler too: that failure says nothing about the device and
+        # must not be cached as its verdict (every later run would refuse a good device)
+        raise_if_interrupted(start)
         cache.write_json(name, {"device": info.label, "error": answer})
     _answers[key] = answer
     return answer
@@ -94,6 +100,8 @@ def _ask_child(info: DeviceInfo) -> Optional[str]:
         timer.cancel()
     if proc.returncode == 0 and lines and lines[-1] == "ok":
         return None
+    if proc.returncode == -2:                      # SIGINT: interrupted, not a verdict on the device
+        raise KeyboardInterrupt
     if timed_out.is_set():
         return f"clrender's kernels did not build and run within {PROBE_TIMEOUT_S} s"
     why = lines[-1] if lines else ""

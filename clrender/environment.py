@@ -58,11 +58,14 @@ The studio environment (`studio_environment(height)`, width 2 * height, every va
 """
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import functools
 import hashlib
+import io
 import math
 import os
+import sys
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -91,6 +94,7 @@ STUDIO_SOFTBOXES = ((180.0, 45.0, 25.0, 15.0, 5.0),
 
 
 # -- the Environment ---------------------------------------------------------------------------------------
+MAX_RADIANCE = 1e30      # intensity x brightest pixel: absurd beyond, and float32 sums overflow near 3e38
 @dataclass(frozen=True, eq=False)
 class Environment:
     """An equirectangular HDR environment (module docstring): `pixels` (H, 2H, 3) float32 linear RGB,
@@ -131,6 +135,10 @@ class Environment:
         intensity = _number(source, "intensity", self.intensity)
         if intensity < 0:
             raise SceneError(f"{source}: environment intensity must be >= 0, got {self.intensity!r}")
+        peak = float(pixels.max()) if pixels.size else 0.0
+        if peak * intensity > MAX_RADIANCE:       # the device sums radiance in float32: inf beyond ~3e38
+            raise SceneError(f"{source}: environment intensity {self.intensity!r} x its brightest pixel {peak:g} "
+                             f"is beyond {MAX_RADIANCE:g} (float32 rendering would overflow)")
         object.__setattr__(self, "intensity", intensity)
         object.__setattr__(self, "rotation_deg", _number(source, "rotation", self.rotation_deg))
         if not isinstance(self.background, (bool, np.bool_)):
@@ -311,6 +319,72 @@ def _studio(height: int) -> np.ndarray:
 
 
 # -- OpenEXR -----------------------------------------------------------------------------------------------
+@contextlib.contextmanager
+def _stderr_captured(lines: list):
+    """Redirect file descriptors 2 and 1 (where C and C++ libraries print) into `lines` for the
+    block. Other threads' output in that moment lands there too: keep the block short."""
+    import tempfile
+    sys.stdout.flush()
+    sys.stderr.flush()
+    saved = [os.dup(1), os.dup(2)]
+    streams = sys.stdout, sys.stderr
+    text = io.StringIO()                     # the binding's warnings go through Python's sys.stdout
+    with tempfile.TemporaryFile() as sink:
+        os.dup2(sink.fileno(), 1)
+        os.dup2(sink.fileno(), 2)
+        sys.stdout = sys.stderr = text
+        try:
+            yield lines
+        finally:
+            sys.stdout, sys.stderr = streams
+            _flush_c_stdio()                 # C++ iostreams print through C's buffered stdout
+            for fd, copy in zip((1, 2), saved):
+                os.dup2(copy, fd)
+                os.close(copy)
+            sink.seek(0)
+            lines.extend(sink.read(65536).decode("utf-8", "replace").splitlines())
+            lines.extend(text.getvalue().splitlines())
+
+
+def _flush_c_stdio() -> None:
+    try:
+        import ctypes
+        ctypes.CDLL(None).fflush(None)
+    except (OSError, AttributeError):        # no C library to ask (not POSIX): nothing buffered there
+        pass
+
+
+def _exr_complaint(lines: list, path) -> str:
+    """The EXR library's first complaint, without the path it starts with and capped."""
+    for line in lines:
+        text = line.strip()
+        if text.startswith(str(path)):
+            text = text[len(str(path)):].lstrip(": ")
+        if text:
+            return text if len(text) <= 160 else text[:157] + "..."
+    return ""
+
+
+def _charge_exr(OpenEXR, path: Path) -> None:
+    """Charge the memory budget (clrender.loaders.budget) for the pixels the header announces, before
+    the binding reads them: every channel of every part as float32 (the binding reads them all),
+    then the float32 RGB stack. A header the binding cannot read is left to the full read to report."""
+    from .loaders import budget
+    try:
+        with _stderr_captured([]):      # a corrupt header's complaints: the full read reports them
+            parts = OpenEXR.File(str(path), header_only=True).parts
+        sizes = []
+        for part in parts:
+            lo, hi = (np.asarray(v, np.int64) for v in part.header["dataWindow"])
+            w, h = (int(x) for x in (hi - lo + 1))
+            sizes.append((max(w, 0), max(h, 0), len(part.header.get("channels", ())) or 1))
+    except Exception:                   # the full read below says what is wrong, in one line
+        return
+    total = sum(w * h * (4 * c + 12) for w, h, c in sizes)
+    shown = ", ".join(f"{w}x{h}" for w, h, _ in sizes[:3]) + (" ..." if len(sizes) > 3 else "")
+    budget.current().charge(total, path, f"the OpenEXR data window ({shown} pixels)")
+
+
 def read_exr(path) -> np.ndarray:
     """(H, W, 3) float32: the R, G, B channels of the first part of an OpenEXR file that has all three."""
     path = Path(path)
@@ -320,20 +394,27 @@ def read_exr(path) -> np.ndarray:
         raise SceneError(f"{path}: reading .exr environments needs the OpenEXR package: pip install OpenEXR") from None
     if not path.is_file():
         raise SceneError(f"{path}: environment file not found")
+    _charge_exr(OpenEXR, path)
+    chatter: list = []
     try:
-        with OpenEXR.File(str(path), separate_channels=True) as f:
-            names = []
+        # The EXR library prints its complaints about a corrupt file (on file descriptors 2 and 1)
+        # and the binding then returns no channels: keep them, say the real problem in one line
+        names, planes = [], None
+        with _stderr_captured(chatter), OpenEXR.File(str(path), separate_channels=True) as f:
             for part in f.parts:
                 channels = part.channels
                 names.extend(channels)
                 if all(c in channels for c in "RGB"):
                     planes = [np.asarray(channels[c].pixels) for c in "RGB"]
                     break
-            else:
-                shown = ", ".join(sorted(set(names))) or "none"
-                missing = ", ".join(c for c in "RGB" if c not in names)
-                raise SceneError(f"{path}: OpenEXR file has no {missing} channel (channels: {shown}; an "
-                                 f"environment needs R, G and B)")
+        if planes is None:
+            complaint = _exr_complaint(chatter, path)
+            if complaint:
+                raise SceneError(f"{path}: cannot read OpenEXR file ({complaint})")
+            shown = ", ".join(sorted(set(names))) or "none"
+            missing = ", ".join(c for c in "RGB" if c not in names)
+            raise SceneError(f"{path}: OpenEXR file has no {missing} channel (channels: {shown}; an "
+                             f"environment needs R, G and B)")
     except SceneError:
         raise
     except Exception as exc:            # the binding raises RuntimeError / ValueError / OSError on bad files
@@ -360,6 +441,10 @@ def read_rgbe(path) -> np.ndarray:
     return decode_rgbe(data, str(path))
 
 
+def _excerpt(text: str, limit: int = 40) -> str:
+    return text if len(text) <= limit else text[:limit] + "..."
+
+
 def decode_rgbe(data: bytes, where: str = "<bytes>") -> np.ndarray:
     """Decode the bytes of a Radiance RGBE file (read_rgbe); SceneError naming `where`."""
     def bad(message: str) -> SceneError:
@@ -382,26 +467,37 @@ def decode_rgbe(data: bytes, where: str = "<bytes>") -> np.ndarray:
         if line.startswith(b"FORMAT="):
             fmt = line[7:].strip()
             if fmt != b"32-bit_rle_rgbe":
-                raise SceneError(f"{where}: Radiance file format {fmt.decode('latin-1')!r} is not supported "
+                raise SceneError(f"{where}: Radiance file format {_excerpt(fmt.decode('latin-1'))!r} is not supported "
                                  f"(only 32-bit_rle_rgbe)")
     end = data.find(b"\n", pos)
     if end < 0:
         raise bad("no resolution line")
     resolution = data[pos:end].decode("latin-1").strip()
+    shown = _excerpt(resolution)         # a garbled line may run into the pixel bytes: quote its start
     pos = end + 1
     parts = resolution.split()
     if len(parts) != 4 or not (parts[1].isdigit() and parts[3].isdigit()):
-        raise bad(f"bad resolution line {resolution!r}")
+        raise bad(f"bad resolution line {shown!r}")
     if (parts[0], parts[2]) != ("-Y", "+X"):
-        raise SceneError(f"{where}: Radiance image orientation {resolution!r} is not supported (only "
+        raise SceneError(f"{where}: Radiance image orientation {shown!r} is not supported (only "
                          f"'-Y H +X W': rows top to bottom, left to right)")
     height, width = int(parts[1]), int(parts[3])
     if height < 1 or width < 1:
-        raise bad(f"empty image {resolution!r}")
+        raise bad(f"empty image {shown!r}")
     buf = memoryview(data)
     n = len(data)
-    out = np.empty((height, width, 4), np.uint8)
     rle_possible = 8 <= width < 0x8000
+    # The header's size is checked against the bytes that follow before anything is allocated: the
+    # smallest scanline is 4 bytes of RLE header and a 2-byte run per 127 pixels of each channel
+    # (a flat one: 4 bytes a pixel). Then the decoded image (RGBE, then float64 and float32 RGB)
+    # against the load's memory budget (clrender.loaders.budget).
+    smallest = min(4 * width, 4 + 8 * -(-width // 127)) if rle_possible else 4 * width
+    if height * smallest > n - pos:
+        raise bad(f"resolution {shown!r} needs at least {height * smallest:,} bytes of pixels, "
+                  f"the file has {n - pos:,}")
+    from .loaders import budget
+    budget.current().charge(16 * height * width, where, f"the image size {shown!r}", peak=52 * height * width)
+    out = np.empty((height, width, 4), np.uint8)
     for row in range(height):
         if rle_possible and pos + 4 <= n and data[pos] == 2 and data[pos + 1] == 2 and \
                 (data[pos + 2] << 8 | data[pos + 3]) == width:

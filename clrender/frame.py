@@ -43,27 +43,34 @@ class SnapshotPool:
         self.budget = int(budget)
         self.live = 0
         self.free: dict = {}          # nbytes -> [byte Array]
+        # give_back runs in whichever thread reads a frame's last array or collects a frame (a
+        # finalizer, possibly inside take's own allocation: hence re-entrant)
+        self.lock = threading.RLock()
 
     def take(self, nbytes: int) -> Optional[cla.Array]:
-        if self.live + nbytes > self.budget:
-            return None
-        self.live += nbytes
-        bucket = self.free.get(nbytes)
-        return bucket.pop() if bucket else cla.empty(self.queue, nbytes, np.uint8)
+        with self.lock:
+            if self.live + nbytes > self.budget:
+                return None
+            self.live += nbytes
+            bucket = self.free.get(nbytes)
+            return bucket.pop() if bucket else cla.empty(self.queue, nbytes, np.uint8)
 
     def give_back(self, held: list) -> None:
-        for copy in held:
-            self.live -= copy.nbytes
-            self.free.setdefault(copy.nbytes, []).append(copy)
-        held.clear()
+        with self.lock:
+            for copy in held:
+                self.live -= copy.nbytes
+                self.free.setdefault(copy.nbytes, []).append(copy)
+            held.clear()
 
     def clear(self) -> None:
         """Drop the free buffers (a new resolution will not reuse their sizes)."""
-        self.free.clear()
+        with self.lock:
+            self.free.clear()
 
     @property
     def held_bytes(self) -> int:
-        return self.live + sum(b.nbytes for bucket in self.free.values() for b in bucket)
+        with self.lock:
+            return self.live + sum(b.nbytes for bucket in self.free.values() for b in bucket)
 
 
 class HostArrays:
@@ -145,8 +152,23 @@ class Readback:
         self.host: dict = {}
         self.makers: dict = {}
         self._held: list = []         # pool buffers this readback's sources were copied into
+        # A read (any thread, after render() returned) and the retire the next render() does
+        # (under the device lock) must not interleave: a source popped for reading but not yet
+        # enqueued would be missed by retire and read after the next frame overwrote it.
+        # Re-entrant: retire reads sources itself when the pool's budget is spent.
+        self.lock = threading.RLock()
         if pool is not None:
             weakref.finalize(self, pool.give_back, self._held)
+
+    def __getstate__(self):
+        """A pickled Frame's readback holds host arrays only (Frame.__getstate__); locks do not pickle."""
+        state = dict(self.__dict__)
+        state.pop("lock", None)
+        return state
+
+    def __setstate__(self, state):
+        self.__dict__.update(state)
+        self.lock = threading.RLock()
 
     def add(self, name: str, array, finish: Callable = lambda a: a) -> None:
         """`array`: a pyopencl Array (or a slice of one) the pipeline keeps on the device."""
@@ -162,6 +184,10 @@ class Readback:
         return set(self.sources) | set(self.host) | set(self.makers)
 
     def get(self, name: str, out: Optional[np.ndarray] = None):
+        with self.lock:
+            return self._get(name, out)
+
+    def _get(self, name: str, out: Optional[np.ndarray]):
         if name in self.host:
             return self.host[name]
         if name in self.makers:
@@ -183,19 +209,21 @@ class Readback:
         """Detach from the pipeline's buffers before the next frame overwrites them: queue a
         device copy of each unread source into a pool buffer, or read it now when the pool's
         budget is spent."""
-        for name, src in list(self.sources.items()):
-            copy = self.pool.take(src.nbytes) if self.pool is not None else None
-            if copy is None:
-                self.get(name)
-                continue
-            cl.enqueue_copy(self.queue, copy.data, src.buffer, byte_count=src.nbytes, src_offset=src.offset)
-            self._held.append(copy)
-            src.buffer, src.offset = copy.data, 0
+        with self.lock:
+            for name, src in list(self.sources.items()):
+                copy = self.pool.take(src.nbytes) if self.pool is not None else None
+                if copy is None:
+                    self._get(name, None)
+                    continue
+                cl.enqueue_copy(self.queue, copy.data, src.buffer, byte_count=src.nbytes, src_offset=src.offset)
+                self._held.append(copy)
+                src.buffer, src.offset = copy.data, 0
 
     def fetch_all(self) -> dict:
-        for name in list(self.sources) + list(self.makers):
-            self.get(name)
-        return self.host
+        with self.lock:
+            for name in list(self.sources) + list(self.makers):
+                self._get(name, None)
+            return self.host
 
 
 class _Planes:

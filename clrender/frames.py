@@ -12,6 +12,7 @@ error naming the field, and a pattern that gives one file to several frames is r
 from __future__ import annotations
 
 import math
+import re
 import string
 from dataclasses import dataclass
 from pathlib import Path
@@ -117,24 +118,92 @@ def output_pattern(out: str, several_scenes: bool) -> str:
     return out
 
 
+def image_path(pattern: str, scene: str, ft: FrameTime) -> Path:
+    """The image of `scene` at frame `ft` under `pattern` (an unsupported type gets .png when the
+    pattern has fields; ValueError naming the pattern when it has none)."""
+    path = Path(pattern.format(name=Path(scene).stem, frame=ft.frame, time=ft.time))
+    if path.suffix.lower() not in IMAGE_SUFFIXES:
+        if "{" in pattern:
+            return path.with_name(path.name + ".png")
+        raise ValueError(f"output {pattern!r}: unsupported image type {path.suffix!r} "
+                         f"(use {', '.join(IMAGE_SUFFIXES)})")
+    return path
+
+
+def _shared_file(pattern: str, path: Path, first_scene: str, scene: str) -> ValueError:
+    need = "{frame}" if first_scene == scene else "{name}"
+    return ValueError(f"output {pattern!r} gives one file {path} to several frames; "
+                      f"put {need} in it (e.g. out/{DEFAULT_FRAME_NAME})")
+
+
 def plan_images(pattern: str, scenes: Sequence[str], frames: Sequence[FrameTime]) -> dict:
     """{(scene, frame number): image path} for every scene x frame; ValueError when two of them
     would share a file or an image type is unsupported."""
     images, owner = {}, {}
     for scene in scenes:
         for ft in frames:
-            path = Path(pattern.format(name=Path(scene).stem, frame=ft.frame, time=ft.time))
-            if path.suffix.lower() not in IMAGE_SUFFIXES:
-                if "{" in pattern:
-                    path = path.with_name(path.name + ".png")
-                else:
-                    raise ValueError(f"output {pattern!r}: unsupported image type {path.suffix!r} "
-                                     f"(use {', '.join(IMAGE_SUFFIXES)})")
+            path = image_path(pattern, scene, ft)
             key = str(path)
             if key in owner:
-                need = "{frame}" if owner[key][0] == scene else "{name}"
-                raise ValueError(f"output {pattern!r} gives one file {path} to several frames; "
-                                 f"put {need} in it (e.g. out/{DEFAULT_FRAME_NAME})")
+                raise _shared_file(pattern, path, owner[key][0], scene)
             owner[key] = (scene, ft.frame)
             images[(scene, ft.frame)] = path
     return images
+
+
+# Up to this many images a job's file names are all made and compared before it starts; a larger
+# job is planned lazily (its tasks are made as they render) and its pattern must give distinct
+# names by construction: `lazy_pattern_ok`.
+EAGER_CHECK_LIMIT = 100_000
+_PLAIN_INT_SPEC = re.compile(r"0?\d*[dn]?")
+
+
+def plain_frame_field(pattern: str) -> bool:
+    """Whether the file name of `pattern` (not its folders) has a {frame} field written as a plain
+    decimal integer ({frame}, {frame:06d}): distinct frames then get distinct names, and a frame's
+    number can be read back from a path (`frame_candidates`)."""
+    name = pattern.replace("\\", "/").rsplit("/", 1)[-1]
+    try:
+        fields = list(string.Formatter().parse(name))
+    except ValueError:
+        return False
+    return any(f == "frame" and conv is None and _PLAIN_INT_SPEC.fullmatch(spec or "")
+               for _, f, spec, conv in fields)
+
+
+def folder_has_fields(pattern: str) -> bool:
+    return "{" in pattern.replace("\\", "/").rsplit("/", 1)[0] if "/" in pattern.replace("\\", "/") else False
+
+
+def check_images(pattern: str, scenes: Sequence[str], frames: Sequence[int], fps: float) -> None:
+    """ValueError when two of scenes x frames would share a file or an image type is unsupported,
+    without keeping the names: every name for up to EAGER_CHECK_LIMIT images; beyond, the first
+    ones, then the pattern itself must make the names distinct (a plain {frame} in the file name, no
+    field in its folders, {name} for several scenes with distinct file stems)."""
+    total = len(scenes) * len(frames)
+    if total <= EAGER_CHECK_LIMIT:
+        plan_images(pattern, scenes, frame_times(frames, fps))
+        return
+    plan_images(pattern, scenes[:1], frame_times(frames[:1000], fps))      # a shared name shows up early
+    why = None
+    if not plain_frame_field(pattern):
+        why = "put a plain {frame} field in the file name (e.g. out/" + DEFAULT_FRAME_NAME + ")"
+    elif folder_has_fields(pattern):
+        why = "use no fields in its folders"
+    elif len(scenes) > 1 and (len({Path(s).stem for s in scenes}) < len(scenes) or "{name" not in pattern):
+        why = "put {name} in it and give the scenes distinct file names"
+    if why:
+        raise ValueError(f"output {pattern!r}: {total} images are too many to check every file name before "
+                         f"rendering; {why}")
+
+
+def frame_candidates(path: str) -> set[int]:
+    """Every integer written in `path` (each run of digits and each part of one): the frame numbers
+    a file of a plain-{frame} pattern could belong to."""
+    out = set()
+    for run in re.findall(r"\d+", str(path)):
+        run = run[-40:]
+        for i in range(len(run)):
+            for j in range(i + 1, len(run) + 1):
+                out.add(int(run[i:j]))
+    return out

@@ -69,6 +69,11 @@ class Manifest:
             data = json.loads(manifest.path.read_text())
             old_job, frames = data["job"], data["frames"]
             records = {(r["scene"], int(r["frame"])): r for r in frames}
+        except RecursionError:      # json.loads recurses per level: a manifest this deep is not ours
+            exc = "nested too deeply"
+            if resume:
+                raise ValueError(f"--resume: cannot read {manifest.path}: {exc}") from None
+            return manifest
         except (OSError, ValueError, KeyError, TypeError) as exc:
             if resume:
                 raise ValueError(f"--resume: cannot read {manifest.path}: {exc}") from None

@@ -33,6 +33,21 @@ def _is_real(x) -> bool:
     return isinstance(x, (int, float, np.integer, np.floating)) and not isinstance(x, bool)
 
 
+def _is_int(x) -> bool:
+    return isinstance(x, (int, np.integer)) and not isinstance(x, bool)
+
+
+def check_int(name: str, value, lo: int, hi: int) -> int:
+    """`value` as an int in [lo, hi]; ValueError naming the parameter and, for a value that is not
+    an integer at all, its type: bool is an int to Python but True is no width, and "160" or
+    160.0 are refused rather than converted."""
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
+        raise ValueError(f"{name} must be an integer in [{lo}, {hi}], got {type(value).__name__} {value!r}")
+    if not lo <= value <= hi:
+        raise ValueError(f"{name} must be an integer in [{lo}, {hi}], got {value}")
+    return int(value)
+
+
 @dataclass(frozen=True)
 class RenderConfig:
     """Render options. Unknown names are errors (see `RenderConfig.from_options`)."""
@@ -90,11 +105,13 @@ class RenderConfig:
     hatching_saturation: float = 0.3   # hatching: colour kept (0 = black ink on white, 1 = full colour)
 
     def __post_init__(self):
-        if self.tile_size not in TILE_SIZES:
+        # `8.0 in TILE_SIZES` is True: the type is checked too (sizes become kernel -D defines)
+        if not (_is_int(self.tile_size) and self.tile_size in TILE_SIZES):
             raise ValueError(f"tile_size must be one of {TILE_SIZES}, got {self.tile_size!r}")
-        if self.shadow_tile_size is not None and self.shadow_tile_size not in TILE_SIZES:
+        if self.shadow_tile_size is not None and not (_is_int(self.shadow_tile_size)
+                                                      and self.shadow_tile_size in TILE_SIZES):
             raise ValueError(f"shadow_tile_size must be None or one of {TILE_SIZES}, got {self.shadow_tile_size!r}")
-        if self.light_tile_size not in TILE_SIZES:
+        if not (_is_int(self.light_tile_size) and self.light_tile_size in TILE_SIZES):
             raise ValueError(f"light_tile_size must be one of {TILE_SIZES}, got {self.light_tile_size!r}")
         if self.light_culling not in LIGHT_CULLING:
             raise ValueError(f"light_culling must be one of {LIGHT_CULLING}, got {self.light_culling!r}")
@@ -104,7 +121,7 @@ class RenderConfig:
             raise ValueError(f"shading must be one of {SHADING}, got {self.shading!r}")
         if self.tonemap not in TONEMAPS:
             raise ValueError(f"tonemap must be one of {TONEMAPS}, got {self.tonemap!r}")
-        if not (isinstance(self.exposure, (int, float)) and np.isfinite(self.exposure) and self.exposure > 0):
+        if not (_is_real(self.exposure) and np.isfinite(self.exposure) and self.exposure > 0):
             raise ValueError(f"exposure must be a positive number, got {self.exposure!r}")
         for name in ("ssao", "ssao_blur"):
             if not isinstance(getattr(self, name), bool):
@@ -234,13 +251,19 @@ class Renderer:
 
     device: None (CLRENDER_DEVICE, else a GPU, else the newest PoCL), a name substring, "P:D", or a
     DeviceInfo. Programs build at the first render that needs them (progress: clrender.progress).
-    Options are RenderConfig fields (e.g. tile_size=8)."""
+    Options are RenderConfig fields (e.g. tile_size=8).
+
+    Threads: a Renderer may be shared by several threads (a thread pool submitting renders just
+    works), and several Renderers on one device may render from several threads. Calls that use
+    the device (render, lights_at, posed_vertices) are serialised by a per-device lock
+    (Device.lock): the device runs one in-order queue, so they would not overlap on it anyway.
+    Each Frame keeps its own pixels: reading one lazily in one thread while another thread renders
+    with the same Renderer gives that frame's arrays (clrender/frame.py retires it under a lock)."""
 
     def __init__(self, width: int = 1280, height: int = 720, device: Optional[str | DeviceInfo] = None,
                  config: Optional[RenderConfig] = None, **options):
-        if not (isinstance(width, (int, np.integer)) and isinstance(height, (int, np.integer))) \
-                or width < 1 or height < 1 or width > 16384 or height > 16384:
-            raise ValueError(f"image size must be integers in [1, 16384], got {width}x{height}")
+        for name, v in (("width", width), ("height", height)):
+            check_int(name, v, 1, 16384)
         if config is not None and options:
             raise ValueError("pass either config= or keyword options, not both")
         self.width, self.height = int(width), int(height)
@@ -253,10 +276,15 @@ class Renderer:
         from . import memory
         memory.check(self.device, self.width, self.height, self.config)   # before building or allocating
         from .pipeline import Pipeline
-        self.pipeline = Pipeline(self.device, self.config)
+        with self.device.lock:                  # its buffers are filled by pyopencl's shared kernels
+            self.pipeline = Pipeline(self.device, self.config)
 
     def lights_at(self, scene: Scene, time: float = 0.0) -> np.ndarray:
         """The lights a frame at `time` is shaded with (particles placed by the device)."""
+        with self.device.lock:
+            return self._lights_at(scene, time)
+
+    def _lights_at(self, scene: Scene, time: float) -> np.ndarray:
         from . import scene_gpu
         from .passes import Resources
         values = scene_gpu.upload_lights(scene, self.device)
@@ -296,6 +324,10 @@ class Renderer:
         (no motion). Without a deformation: the scene's own arrays as uploaded."""
         if not isinstance(scene, Scene):
             raise TypeError(f"posed_vertices() needs a clrender.Scene, got {type(scene).__name__}")
+        with self.device.lock:
+            return self._posed_vertices(scene)
+
+    def _posed_vertices(self, scene: Scene) -> dict:
         res = self._scene_resources(scene)
         nv, q = len(scene.positions), self.device.queue
         tangents = res.buffers["tangents"]
@@ -308,7 +340,13 @@ class Renderer:
     def render(self, scene: Scene, camera: Optional[Camera] = None,
                previous_camera: Optional[Camera] = None, time: float = 0.0) -> Frame:
         """Render `scene` from `camera` (default: the scene's). `previous_camera` gives motion
-        vectors; `time` (seconds) places the scene's light particles."""
+        vectors; `time` (seconds) places the scene's light particles. Safe to call from several
+        threads (see the class doc): calls run one at a time."""
+        with self.device.lock:
+            return self._render(scene, camera, previous_camera, time)
+
+    def _render(self, scene: Scene, camera: Optional[Camera], previous_camera: Optional[Camera],
+                time: float) -> Frame:
         from . import memory
         start = _time.perf_counter()
         if not isinstance(scene, Scene):

@@ -2,8 +2,10 @@
 
 Every loader (glTF, OBJ/MTL, PLY, STL, TOML) produces this one representation.
 Triangle indices are load order and are what `Frame.triangle_id` reports; the
-scene never reorders or drops triangles (invalid ones are dropped and counted by
-the setup kernel, so ids stay stable).
+scene never reorders or drops triangles, so ids stay stable. Vertex positions must be finite
+and within ±MAX_COORDINATE (`check_positions`: a SceneError naming the array and the vertex,
+from every loader and from Scene construction, upload and set_transform); the setup kernel still
+drops and counts triangles that only the device's posing (skins, morph targets) makes invalid.
 
 Objects (`Scene.objects`, what `Frame.object_id` indexes): one record per drawn instance. A glTF
 node with a mesh is one object (two nodes sharing a mesh are two), made of that mesh's
@@ -48,6 +50,43 @@ class ParticleSystem:
 
 
 SHADOW_MAP_SIZES = (16, 8192)      # inclusive range of a shadow map's side in texels
+
+# Vertex coordinates beyond this are refused: float32 ends at 3.4e38, so a coordinate of 1e30 has
+# only 8 orders of magnitude left before the camera's matrices (a far plane of 1e5, a pixel scale
+# of 1e3) overflow it to inf; no scene spans 1e30 units, and such values come from garbage bytes.
+MAX_COORDINATE = 1e30
+_CHECK_ROWS = 1 << 20               # vertices checked per step: a bounded temporary for huge meshes
+
+
+def bad_vertex(positions) -> int:
+    """The first row of (V, 3) `positions` with a coordinate that is NaN, infinite or beyond
+    ±MAX_COORDINATE; -1 when there is none."""
+    p = np.asarray(positions).reshape(-1, 3)
+    if not p.size or (-MAX_COORDINATE <= p.min() and p.max() <= MAX_COORDINATE):   # min/max carry NaN
+        return -1                   # the usual case: two reductions, no temporary array
+    for start in range(0, len(p), _CHECK_ROWS):
+        with np.errstate(invalid="ignore"):
+            ok = (np.abs(p[start:start + _CHECK_ROWS]) <= MAX_COORDINATE).all(axis=1)   # NaN compares False
+        if not ok.all():
+            return start + int(np.argmin(ok))
+    return -1
+
+
+def coordinates_text(row) -> str:
+    """A vertex for a message: (x, y, z), float32's 7 significant digits each."""
+    return "(" + ", ".join(f"{float(v):.7g}" for v in np.asarray(row).reshape(-1)) + ")"
+
+
+BAD_COORDINATES = f"vertex coordinates must be finite and within ±1e{round(np.log10(MAX_COORDINATE))}"
+
+
+def check_positions(positions, where: str, what: str = "positions") -> None:
+    """SceneError `<where>: <what>[i] is (x, y, z): vertex coordinates must be finite and within
+    ±1e+30` for the first bad vertex (bad_vertex), else nothing."""
+    i = bad_vertex(positions)
+    if i >= 0:
+        row = np.asarray(positions).reshape(-1, 3)[i]
+        raise SceneError(f"{where}: {what}[{i}] is {coordinates_text(row)}: {BAD_COORDINATES}")
 
 
 def check_shadow_map_size(size) -> int:
@@ -104,7 +143,8 @@ class Texture:
 @dataclass(frozen=True)
 class SceneObject:
     """One drawn instance: `name` (the glTF node's, the OBJ group's, the TOML entry's), the name
-    of the `mesh` it draws, its `path` from the root ("parent/child" node names for glTF) and its
+    of the `mesh` it draws, its `path` from the root ("parent/child" node names for glTF; past 63
+    levels the middle is shortened to "...<k nodes>...", see loaders/gltf.py PATH_HEAD) and its
     `extras`: the glTF node's (any JSON value: semantic labels travel here) or the TOML entry's
     `extras` table; None elsewhere."""
     name: str
@@ -146,6 +186,8 @@ class Scene:
     objects: list = field(default_factory=list)  # SceneObject per drawn instance (module doc); empty:
                                                 # one per mesh, named after it
     mesh_object: Optional[np.ndarray] = None    # (len(mesh_names),) int32 index into objects
+    source_files: tuple = ()                    # resolved Paths load_scene read (the scene file, its buffers,
+                                                # textures, MTL, TOML meshes, environment): outputs must not be one
 
     def __post_init__(self):
         self.positions = np.ascontiguousarray(self.positions, dtype=np.float32).reshape(-1, 3)
@@ -188,6 +230,7 @@ class Scene:
             raise SceneError(f"<arrays>: vertices/faces are not numeric arrays ({exc})") from None
         if positions.ndim != 2 or positions.shape[1] != 3:
             raise SceneError(f"<arrays>: vertices must have shape (V, 3), got {positions.shape}")
+        check_positions(positions, "<arrays>", "vertices")       # before normals are computed from them
         if triangles.size and not np.issubdtype(triangles.dtype, np.integer):
             raise SceneError(f"<arrays>: faces must be integers, got dtype {triangles.dtype}")
         triangles = triangles.astype(np.int64).reshape(-1, 3) if triangles.size else np.zeros((0, 3), np.int64)
@@ -329,6 +372,12 @@ class Scene:
         cur = _affine_matrix(matrix, "matrix")
         prev = cur if previous is None else _affine_matrix(previous, "previous")
         vertices, rest_p, rest_n, rest_tris = self._rest_pose(m)
+        for label, mat in (("matrix", cur), ("previous", prev)):   # finite but huge: beyond float32's range
+            placed = rest_p @ mat[:3, :3].T + mat[:3, 3]
+            i = bad_vertex(placed)
+            if i >= 0:
+                raise SceneError(f"{self.source}: set_transform of mesh {self.mesh_names[m]!r}: {label} places "
+                                 f"vertex {int(vertices[i])} at {coordinates_text(placed[i])}: {BAD_COORDINATES}")
         a = cur[:3, :3]
         positions, normals = self.positions.copy(), self.normals.copy()
         positions[vertices] = rest_p @ a.T + cur[:3, 3]
@@ -470,6 +519,9 @@ class Scene:
             raise SceneError(f"{where}: a triangle index is out of range (there are {nv} vertices)")
         if self.triangle_material.shape != (nt,):
             raise SceneError(f"{where}: triangle_material must have one entry per triangle ({nt})")
+        check_positions(self.positions, where)
+        if self.previous_positions is not None:
+            check_positions(self.previous_positions, where, "previous_positions")
         if nt and (self.triangle_material.min() < 0 or self.triangle_material.max() >= len(self.materials)):
             raise SceneError(f"{where}: a triangle references a material that does not exist")
         if np.shape(self.triangle_mesh) != (nt,) or (nt and (self.triangle_mesh.min() < 0 or

@@ -17,6 +17,7 @@ import weakref
 import numpy as np
 import pyopencl.array as cla
 
+from . import scene as scene_module
 from . import structs
 from .passes.base import Resources
 from .scene import TEXTURE_SLOTS, Scene, SceneError, Texture
@@ -309,6 +310,9 @@ def _update(scene: Scene, device, old: tuple, new: tuple, res: Resources) -> boo
     if "triangles" in changed and scene.triangle_count and (scene.triangles.min() < 0
                                                               or scene.triangles.max() >= nv):
         raise SceneError(f"{where}: a triangle index is out of range (there are {nv} vertices)")
+    for name in ("positions", "previous_positions"):
+        if name in changed and getattr(scene, name) is not None:
+            scene_module.check_positions(getattr(scene, name), where, name)
     if "tangents" in changed and scene.tangents is not None and not np.isfinite(scene.tangents).all():
         raise SceneError(f"{where}: tangents must be finite with shape {(nv, 4)}, got {np.shape(scene.tangents)}")
     if scene.previous_positions is not None and np.shape(scene.previous_positions) != (nv, 3):

@@ -2,7 +2,8 @@
 file for file input) or a documented safe result checked against an independent expectation.
 
 Covered elsewhere (not repeated here):
-  NaN/Inf vertices .......... test_raster.py::test_non_finite_vertices (dropped, counted `invalid`)
+  NaN/Inf/1e31 vertices ..... test_geometry_validity.py (SceneError naming the accessor / vertex); the
+                              kernels' own guard: test_raster.py::test_non_finite_vertices
   1e7 coordinates ........... test_raster.py::test_large_coordinates_within_guard_band / _guard_band
   empty scene ............... test_raster.py::test_empty_scene (all background, +inf depth)
   near-plane crossing ....... test_raster.py::test_near_plane_clipping, test_near_clipped_grid
@@ -187,8 +188,8 @@ def test_odd_resolutions_match_reference(make_renderer, size):
 
 
 def test_bad_image_sizes_are_errors(device):
-    for w, h in ((0, 5), (5, -1), (16385, 4), (2.5, 3)):
-        with pytest.raises(ValueError, match="image size"):
+    for w, h in ((0, 5), (5, -1), (16385, 4), (2.5, 3)):      # the message names the parameter
+        with pytest.raises(ValueError, match=r"^(width|height) must be an integer in \[1, 16384\], got "):
             clrender.Renderer(w, h, device=device.id)
 
 

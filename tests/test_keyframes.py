@@ -4,6 +4,7 @@ bit-identical to the same camera placed directly; velocity of a moving and of a 
 from __future__ import annotations
 
 import math
+import shutil
 from pathlib import Path
 
 import numpy as np
@@ -16,7 +17,6 @@ from clrender.errors import SceneError
 from clrender.keyframes import KeyframeAnimation, LightKey, LightTrack
 
 SCENES = Path(__file__).resolve().parent.parent / "scenes"
-DEMO_GLTF = (SCENES / "demo.gltf").as_posix()
 
 CAMERA_KEYS = """
 [camera]
@@ -57,7 +57,10 @@ CAMERA_EXPECTED = [
 
 def write(tmp_path, text: str, mesh: bool = False) -> Path:
     path = tmp_path / "s.toml"
-    path.write_text((f'[[mesh]]\npath = "{DEMO_GLTF}"\n' if mesh else "") + text)
+    if mesh:        # beside the TOML file: a scene reads only its own folder (or --allow-outside ones)
+        for name in ("demo.gltf", "demo.bin", "checker.png", "leaf_mask.png"):
+            shutil.copy(SCENES / name, tmp_path / name)
+    path.write_text(('[[mesh]]\npath = "demo.gltf"\n' if mesh else "") + text)
     return path
 
 

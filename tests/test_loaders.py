@@ -466,11 +466,14 @@ def test_obj_missing_texture_and_mtl(tmp_path):
         load_scene(tmp_path / "m.obj")
 
 
-def test_obj_nan_and_degenerate_kept(tmp_path):
+def test_obj_nan_refused_and_degenerate_kept(tmp_path):
+    """A NaN vertex is an error naming its line (issue 34: it used to vanish from the render);
+    degenerate triangles (collinear, repeated vertices) load and are counted by the raster."""
     (tmp_path / "n.obj").write_text("v 0 0 0\nv 1 0 0\nv nan 1 0\nv 2 0 0\nf 1 2 3\nf 1 2 4\nf 2 4 1\n")
-    scene = load_scene(tmp_path / "n.obj")
+    assert_scene_error(tmp_path / "n.obj", ["line 3: vertex 3 is (nan, 1, 0)", "finite"])
+    (tmp_path / "d.obj").write_text("v 0 0 0\nv 1 0 0\nv 3 0 0\nv 2 0 0\nf 1 2 3\nf 1 2 4\nf 2 4 2\n")
+    scene = load_scene(tmp_path / "d.obj")
     assert scene.triangle_count == 3
-    assert np.isnan(scene.positions).any()
 
 
 def test_empty_obj(tmp_path):
@@ -710,12 +713,14 @@ def test_gltf_camera_rules(tmp_path):
     assert cam.far == pytest.approx(1000 * 0.5)          # zfar absent: max(1000 * znear, 2 * scene reach)
 
 
-def test_gltf_nan_degenerate_kept_and_empty(tmp_path):
+def test_gltf_nan_refused_degenerate_kept_and_empty(tmp_path):
     pos = TRI_POS.copy()
     pos[3] = np.nan
     idx = np.array([0, 1, 2, 2, 1, 3, 0, 0, 1], np.uint16)
-    scene = load_scene(write_gltf(tmp_path / "n.gltf", positions=pos, indices=idx))
-    assert scene.triangle_count == 3 and np.isnan(scene.positions[3]).all()
+    assert_scene_error(write_gltf(tmp_path / "n.gltf", positions=pos, indices=idx),
+                       ["POSITION (accessors[0])", "vertex 3 is (nan, nan, nan)"])
+    scene = load_scene(write_gltf(tmp_path / "d.gltf", indices=idx))
+    assert scene.triangle_count == 3
     np.testing.assert_array_equal(scene.triangles, idx.reshape(-1, 3))
 
     def no_meshes(doc):

@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from helpers import SHADING_TOL
+from helpers import SHADING_TOL, reach_the_raster_guard
 import clrender
 from clrender import Camera, Material
 from reference import shading as ref
@@ -30,6 +30,14 @@ from reference.raster import rasterize, triangles_scene
 
 PROJECTIONS = ("perspective", "orthographic")
 DEPTH_RTOL = 1e-6
+
+
+@pytest.fixture(scope="module", autouse=True)
+def raster_guard():
+    """This module feeds the raster NaN, infinite and huge vertices on purpose (helpers.reach_the_raster_guard)."""
+    with pytest.MonkeyPatch.context() as mp:
+        reach_the_raster_guard(mp)
+        yield
 
 
 def _frame_of(camera):

@@ -18,11 +18,20 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from clrender import Camera, Scene
+from helpers import reach_the_raster_guard
 from reference.raster import (ReferenceScopeError, coverage_count, near_floor_grid, pixel_exact_camera,
                               rasterize, screen_to_world, tessellated_grid, triangles_scene)
 
 DEPTH_RTOL = 1e-6
 SIZES = [(64, 48), (97, 61), (128, 128)]
+
+
+@pytest.fixture(scope="module", autouse=True)
+def raster_guard():
+    """This module feeds the raster NaN, infinite and huge vertices on purpose (helpers.reach_the_raster_guard)."""
+    with pytest.MonkeyPatch.context() as mp:
+        reach_the_raster_guard(mp)
+        yield
 
 
 # --------------------------------------------------------------------------------------

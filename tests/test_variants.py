@@ -257,10 +257,12 @@ def test_msaa_interior_pixels_unchanged(msaa_frames):
 
 
 @pytest.mark.parametrize("samples", [2, 4, 8])
-def test_sub_sample_visibility_matches_reference(device, samples):
+def test_sub_sample_visibility_matches_reference(device, samples, monkeypatch):
     """Each sub-sample's visibility (one setup and binning widened to the samples, one raster
     keeping a fragment per sample point) against the NumPy reference rasterizer evaluated at
     that sample point: triangle ids exact (contract §10)."""
+    from helpers import reach_the_raster_guard
+    reach_the_raster_guard(monkeypatch)          # the soup holds non-finite vertices on purpose
     import pyopencl.array as cla  # noqa: F401  (the passes use it)
     from clrender.passes.second_geometry import SampleGeometryPass
     size = (61, 47)
@@ -317,19 +319,20 @@ def test_cli_and_toml_options(device, tmp_path, monkeypatch):
     from helpers import record_render_configs
     configs = record_render_configs(monkeypatch)
     toml = tmp_path / "s.toml"
-    gltf = (__import__("pathlib").Path(__file__).resolve().parent.parent / "scenes" / "demo.gltf").as_posix()
-    toml.write_text(f'[[mesh]]\npath = "{gltf}"\n\n[render]\npipeline = "light_indexed"\n')
+    scenes = __import__("pathlib").Path(__file__).resolve().parent.parent / "scenes"
+    toml.write_text(f'[[mesh]]\npath = "{(scenes / "demo.gltf").as_posix()}"\n\n[render]\npipeline = "light_indexed"\n')
+    allow = ["--allow-outside", str(scenes)]           # the TOML names the repository's demo mesh
     assert cli.main(["render", str(toml), "-o", str(tmp_path / "a.png"), "--width", "32", "--height", "24",
-                     "--device", device.id, "-q"]) == 0
+                     "--device", device.id, "-q", *allow]) == 0
     assert configs[-1].pipeline == "light_indexed"
     assert cli.main(["render", str(toml), "-o", str(tmp_path / "b.png"), "--width", "32", "--height", "24",
                      "--device", device.id, "-q", "--pipeline", "light_prepass", "--msaa", "4",
-                     "--light-buffer-specular", "luminance", "--light-buffer-precision", "float16"]) == 0
+                     "--light-buffer-specular", "luminance", "--light-buffer-precision", "float16", *allow]) == 0
     c = configs[-1]
     assert (c.pipeline, c.msaa, c.light_buffer_specular, c.light_buffer_precision) == (
         "light_prepass", 4, "luminance", "float16")
     assert cli.main(["render", str(toml), "-o", str(tmp_path / "c.png"), "--device", device.id, "-q",
-                     "--msaa", "4"]) != 0
+                     "--msaa", "4", *allow]) != 0
     assert cli.main(["render", str(toml), "-o", str(tmp_path / "d.png"), "--width", "32", "--height", "24",
-                     "--device", device.id, "-q", "--pipeline", "light_indexed", "--reuse-visibility"]) == 0
+                     "--device", device.id, "-q", "--pipeline", "light_indexed", "--reuse-visibility", *allow]) == 0
     assert (configs[-1].pipeline, configs[-1].reuse_visibility) == ("light_indexed", True)

@@ -6,6 +6,7 @@ world-space `clrender.scene.Scene` and reports bad input as `clrender.scene.Scen
 """
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 from ..scene import Scene, SceneError
@@ -30,11 +31,61 @@ def load_scene(path, default_environment: bool = True, allow=None) -> Scene:
     `allow`: folders outside the scene file's own folder that the files it references may lie in
     (clrender.loaders.context; by default a scene reads only its own folder and data URIs)."""
     from .context import loading
-    with loading(allow):
-        return _load(path, default_environment)
+    if isinstance(allow, (str, os.PathLike)):      # one folder, not its characters
+        allow = [allow]
+    with loading(allow) as ctx:
+        if ctx.scene_dir is not None:               # a TOML scene's mesh file: the TOML's folder stays
+            return _load(path, default_environment)
+        try:
+            ctx.scene_dir = Path(path).parent.resolve()
+        except (TypeError, OSError, RuntimeError, ValueError):
+            return _load(path, default_environment)   # not a usable path: _load says so
+        try:
+            return _load(path, default_environment)
+        finally:
+            ctx.scene_dir = None
 
 
 def _load(path, default_environment: bool) -> Scene:
+    """`_dispatch`, recording the files read (`Scene.source_files`) and turning any unexpected
+    failure (a library's AttributeError, MemoryError, RecursionError, PIL's DecompressionBombError)
+    into one SceneError line naming the file; a KeyboardInterrupt stays one."""
+    from . import context
+    from ..interrupt import import_deferring_interrupts
+    if isinstance(path, (str, os.PathLike)):
+        context.record(path)
+        if Path(path).suffix.lower() in (".obj", ".ply", ".stl"):      # glTF loads without trimesh
+            # trimesh's import catches BaseException around its optional imports: a Ctrl-C there
+            # would be swallowed and the job run to the end (issue 34, problem 7)
+            import_deferring_interrupts("trimesh")
+    try:
+        scene = _dispatch(path, default_environment)
+    except SceneError:
+        raise
+    except Exception as exc:
+        raise SceneError(f"{path}: {_unexpected(exc)}") from exc
+    scene.source_files = tuple(context.current().files)
+    return scene
+
+
+def _unexpected(exc: BaseException) -> str:
+    """One capped line for an error a loader did not anticipate (never a file's content at length)."""
+    if isinstance(exc, MemoryError):
+        return "out of memory while loading (a count or size in the file is too large for this machine)"
+    if isinstance(exc, RecursionError):
+        return "structure nested too deeply to load"
+    if isinstance(exc, OSError) and exc.strerror:
+        return f"cannot read {exc.filename or 'the file'}: {exc.strerror}"
+    first = next((ln.strip() for ln in str(exc).splitlines() if ln.strip()), "")
+    if len(first) > 160:
+        first = first[:157] + "..."
+    name = type(exc).__name__
+    if type(exc).__name__ == "DecompressionBombError":
+        return f"an image is too large to decode ({first})"
+    return f"cannot load ({name}: {first})" if first else f"cannot load ({name})"
+
+
+def _dispatch(path, default_environment: bool) -> Scene:
     try:
         path = Path(path)
     except TypeError:

@@ -6,8 +6,11 @@ into one `Scene` without reordering or dropping anything.
 """
 from __future__ import annotations
 
+import contextvars
+import hashlib
 import io
 import os
+import threading
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -31,6 +34,38 @@ NO_TANGENT = (0.0, 0.0, 0.0, 1.0)
 def fail(path, message: str) -> SceneError:
     """A SceneError whose message starts with the file name."""
     return SceneError(f"{path}: {message}")
+
+
+# Scene files (glTF JSON, TOML) nested deeper than this are refused when parsed: whatever walks the
+# values later (dataclasses.asdict, json.dumps(indent=...), pickle, deepcopy) recurses per level, so a
+# bound here keeps every later consumer far from Python's recursion limit (issue 34). Real files
+# nest about 10 levels; `extras` are free-form but 100 levels leaves them plenty.
+MAX_NESTING = 100
+NESTING_ERROR = f"nested too deeply (more than {MAX_NESTING} levels of arrays / objects)"
+
+
+def check_nesting(path, value, what: str) -> None:
+    """SceneError naming `path` when the parsed `value` nests more than MAX_NESTING levels; iterative."""
+    stack = [(value, 1)]
+    while stack:
+        item, depth = stack.pop()
+        children = item.values() if isinstance(item, dict) else item if isinstance(item, list) else ()
+        for child in children:
+            if isinstance(child, (dict, list)):
+                if depth >= MAX_NESTING:
+                    raise fail(path, f"{what} is {NESTING_ERROR}")
+                stack.append((child, depth + 1))
+
+
+def parse_nested(path, parse: Callable, text, what: str):
+    """parse(text) (json.loads, tomllib.loads) then check_nesting; the parser's own RecursionError on
+    deeper input is the same one-line SceneError."""
+    try:
+        value = parse(text)
+    except RecursionError:
+        raise fail(path, f"{what} is {NESTING_ERROR}") from None
+    check_nesting(path, value, what)
+    return value
 
 
 @dataclass
@@ -136,6 +171,9 @@ def assemble(pieces: Sequence[Piece], materials: list[Material],
     want_colors = any(p.colors is not None for p in pieces)
     want_tangents = any(p.tangents is not None or p.tangent_uv is not None for p in pieces)
     k_sets = max((len(p.extra_uvs) for p in pieces if p.extra_uvs), default=0)
+    vertex_bytes = 32 + 16 * want_colors + 16 * want_tangents + 8 * k_sets     # float32 per vertex
+    charge_scene_arrays(sum(np.size(p.positions) // 3 for p in pieces), sum(np.size(p.faces) // 3 for p in pieces),
+                        vertex_bytes, source)
     names = []
     offset = 0
     for k, piece in enumerate(pieces):
@@ -213,6 +251,15 @@ def assemble(pieces: Sequence[Piece], materials: list[Material],
     )
 
 
+def charge_scene_arrays(vertices: int, triangles: int, vertex_bytes: int, source) -> None:
+    """Charge the memory budget for a Scene's arrays before they are concatenated: each per-vertex
+    and per-triangle array twice (the per-piece converted parts, then the whole)."""
+    from . import budget
+    # triangles: int64 parts and int32 indices, material, mesh and face ids
+    nbytes = 2 * vertices * vertex_bytes + triangles * (24 + 2 * 24)
+    budget.current().charge(nbytes, source, f"the scene's arrays ({vertices} vertices, {triangles} triangles)")
+
+
 # -- combining scenes (TOML) -------------------------------------------------------------------------
 def shift_textures(material: Material, offset: int) -> Material:
     """`material` with every texture slot's index moved by `offset` (-1, no texture, stays -1)."""
@@ -285,19 +332,84 @@ def image_to_rgba(img) -> np.ndarray:
 
 
 def decode_image(data, where: str) -> np.ndarray:
-    """Decode image bytes or a file path to RGBA8; SceneError naming `where` on failure."""
-    from PIL import Image, UnidentifiedImageError
+    """Decode image bytes or a file path to RGBA8; SceneError naming `where` on failure.
 
+    A file is decoded once per load (`LoadContext.images`, keyed by its resolved path; embedded
+    bytes by their hash): entries that name it again share the array. The size in the image's header is charged to the load's memory
+    budget before any pixel is decoded (`_decode`)."""
+    if isinstance(data, (str, os.PathLike)):
+        if not Path(data).is_file():
+            raise SceneError(f"{where}: texture file not found: {data}")
+        return _decoded_once(str(Path(data).resolve()), lambda: _decode(data, where, Path(data).name))
+    data = bytes(data)      # embedded (bufferView, data URI): the same bytes named twice decode once too
+    return _decoded_once(f"sha256:{hashlib.sha256(data).hexdigest()}",
+                         lambda: _decode(io.BytesIO(data), where, "the embedded image"))
+
+
+class _ImageEntry:
+    """One file's decoding in a load: the first caller decodes, the others wait for its result."""
+    def __init__(self):
+        self.lock = threading.Lock()
+        self.result = None              # the RGBA array, or the SceneError decoding raised
+
+
+_IMAGES_LOCK = threading.Lock()
+
+
+def _decoded_once(key: str, decode: Callable[[], np.ndarray]) -> np.ndarray:
+    from .context import current
+    images = current().images
+    with _IMAGES_LOCK:
+        entry = images.get(key)
+        if entry is None:
+            entry = images[key] = _ImageEntry()
+    with entry.lock:
+        if entry.result is None:
+            try:
+                entry.result = decode()
+            except SceneError as exc:
+                entry.result = exc
+    if isinstance(entry.result, SceneError):
+        raise type(entry.result)(str(entry.result))
+    return entry.result
+
+
+_PIL_LIMIT_LOCK = threading.Lock()
+
+
+def _open_image(source):
+    """Image.open without Pillow's decompression-bomb guard (a warning past 89 M pixels, an error
+    past 179 M): the load's memory budget is the gate, checked on the header's size before any
+    pixel is decoded, so a large texture that fits is decoded silently and one that does not is the
+    budget's one-line error. Pillow checks only in `open`; the global is restored at once."""
+    from PIL import Image
+    with _PIL_LIMIT_LOCK:
+        limit, Image.MAX_IMAGE_PIXELS = Image.MAX_IMAGE_PIXELS, None
+        try:
+            return Image.open(source)
+        finally:
+            Image.MAX_IMAGE_PIXELS = limit
+
+
+def _decode(source, where: str, name: str) -> np.ndarray:
+    """Decode one image: its header's size is checked against the memory budget first, charging
+    the RGBA array kept and checking the decoding's peak beside what the load holds."""
+    from PIL import UnidentifiedImageError
+
+    from .budget import current
     try:
-        if isinstance(data, (str, os.PathLike)):
-            if not Path(data).is_file():
-                raise SceneError(f"{where}: texture file not found: {data}")
-            with Image.open(data) as img:
+        with _open_image(source) as img:
+            w, h = img.size
+            band_bytes = 4 if img.mode in ("I", "F") else 2 if img.mode.startswith("I;16") else 1
+            # peak (measured): Pillow's decoded image, its RGBA conversion, the bytes numpy copies from
+            kept = current().charge(w * h * 4, where, f"{name} ({w}x{h} pixels, decoded)",
+                                    peak=w * h * (12 + len(img.getbands()) * band_bytes))
+            try:
                 img.load()
                 return image_to_rgba(img)
-        with Image.open(io.BytesIO(bytes(data))) as img:
-            img.load()
-            return image_to_rgba(img)
+            except BaseException:
+                current().release(kept)         # nothing is kept of an image that failed to decode
+                raise
     except SceneError:
         raise
     except (UnidentifiedImageError, OSError, ValueError, SyntaxError) as exc:
@@ -320,7 +432,8 @@ def start_images(jobs: Sequence[Callable[[], np.ndarray]]) -> Callable[[], list[
         return run
     workers = min(len(jobs), max(1, (os.cpu_count() or 2)), 16)
     pool = ThreadPoolExecutor(max_workers=workers)
-    futures = [pool.submit(job) for job in jobs]
+    # each job in a copy of this thread's context: the load's budget and image cache (loaders.context)
+    futures = [pool.submit(contextvars.copy_context().run, job) for job in jobs]
     pool.shutdown(wait=False)               # the workers exit when the jobs are done
 
     def wait() -> list[np.ndarray]:
@@ -336,8 +449,16 @@ def start_images(jobs: Sequence[Callable[[], np.ndarray]]) -> Callable[[], list[
 # -- trimesh -----------------------------------------------------------------------------------------
 def trimesh_load(path, **kwargs):
     """`trimesh.load(..., force='scene')` with every failure turned into a SceneError naming `path`."""
+    import logging
+
     import trimesh
 
+    # trimesh logs warnings (with tracebacks, and text of the file) that Python's last-resort handler
+    # would print on stderr; clrender reports problems itself. An application's own logging config
+    # (a handler on the root logger) still receives them.
+    log = logging.getLogger("trimesh")
+    if not any(isinstance(h, logging.NullHandler) for h in log.handlers):
+        log.addHandler(logging.NullHandler())
     where = kwargs.pop("where", path)
     try:
         return trimesh.load(path, force="scene", **kwargs)

@@ -71,8 +71,9 @@ from .. import structs
 from ..camera import Camera
 from ..scene import Material, Scene, SceneError, SceneObject
 from ..deform import Deformation
-from ..scene import vertex_normals
+from ..scene import BAD_COORDINATES, bad_vertex, coordinates_text, vertex_normals
 from ..tangents import generate_tangents
+from . import budget
 from .common import Piece, assemble, check_faces, world_piece
 from .gltf_document import (MODE_FAN, MODE_STRIP, MODE_TRIANGLES, SUPPORTED_EXTENSIONS, Document, attribute_sets,
                             extensions_in_use, load_document, node_light, punctual_lights)
@@ -298,23 +299,63 @@ def load_gltf(path) -> Scene:
     return scene
 
 
-def _node_paths(nodes_json: list) -> dict:
-    """Node index -> "root/…/node" of node names (unnamed: node<i>); a node has at most one parent
-    (the document checks it)."""
-    parent = {c: n for n, node in enumerate(nodes_json) for c in node.get("children", [])}
-    names = [node.get("name") or f"node{n}" for n, node in enumerate(nodes_json)]
-    paths: dict = {}
+# What one drawn primitive costs while the scene is put together (common.Piece): float64 positions
+# and normals, and their world-space copies, per vertex; int64 faces and a flipped copy per triangle
+PIECE_VERTEX_BYTES, PIECE_TRIANGLE_BYTES, PIECE_BYTES = 96, 48, 2048
+
+
+def _charge_piece(doc: Document, n: int, mi: int, p: int, prim: dict, what: str) -> None:
+    """Charge the memory budget for primitive `p` of mesh `mi` drawn by node `n`, before its arrays
+    are made: a mesh drawn by many nodes costs its vertices once per node."""
+    accessors = doc.list("accessors")
+    nv = accessors[prim["attributes"]["POSITION"]]["count"]
+    ni = accessors[prim["indices"]]["count"] if "indices" in prim else nv
+    nt = max(ni - 2, 0) if prim.get("mode", MODE_TRIANGLES) == MODE_STRIP else ni // 3
+    budget.current().charge(nv * PIECE_VERTEX_BYTES + nt * PIECE_TRIANGLE_BYTES + PIECE_BYTES, doc.path,
+                            f"{what} on node {n} ({nv} vertices, {nt} triangles)")
+
+
+# Object paths name at most PATH_HEAD + PATH_TAIL nodes and PATH_NAME characters of each: a deeper
+# path keeps the first PATH_HEAD and the last PATH_TAIL names around a "...<k nodes>..." part, so that a
+# chain of n drawing nodes costs O(n) characters, not O(n * depth) (issue 34)
+PATH_HEAD, PATH_TAIL, PATH_NAME = 16, 47, 256
+
+
+def _node_paths(nodes_json: list, order: list[int]):
+    """path(n) -> "root/…/node" of node names (unnamed: node<i>) for the nodes of `order` (a pre-order
+    traversal: parents first), shortened as PATH_HEAD / PATH_TAIL / PATH_NAME say. O(PATH_TAIL) per
+    node, no walk up the hierarchy."""
+    def name(n: int) -> str:
+        s = nodes_json[n].get("name") or f"node{n}"
+        return s if len(s) <= PATH_NAME else s[:PATH_NAME - 3] + "..."
+
+    parent = {c: n for n in order for c in nodes_json[n].get("children", [])}
+    chain: dict = {}        # node -> (depth, first names, last names)
+    for n in order:
+        p = parent.get(n)
+        if p is None:
+            chain[n] = (1, (name(n),), (name(n),))
+        else:
+            depth, head, tail = chain[p]
+            head = head if len(head) == PATH_HEAD else head + (name(n),)
+            chain[n] = (depth + 1, head, (tail + (name(n),))[-PATH_TAIL:])
 
     def path(n: int) -> str:
-        if n not in paths:
-            chain, seen = [n], {n}
-            while chain[-1] in parent and parent[chain[-1]] not in seen:
-                seen.add(parent[chain[-1]])
-                chain.append(parent[chain[-1]])
-            paths[n] = "/".join(names[i] for i in reversed(chain))
-        return paths[n]
+        depth, head, tail = chain[n]
+        if depth <= PATH_HEAD + PATH_TAIL:
+            return "/".join((head + tail[len(head) - depth:]) if depth > len(head) else head)
+        return "/".join(head + (f"...<{depth - PATH_HEAD - PATH_TAIL} nodes>...",) + tail)
 
-    return {n: path(n) for n in range(len(nodes_json))}
+    return path
+
+
+def _check_positions(doc: Document, positions, what: str) -> None:
+    """One line naming the accessor (and the transform that carried it there) when a vertex is NaN,
+    infinite or beyond ±1e30: such a triangle would vanish from the render without a word."""
+    i = bad_vertex(positions)
+    if i >= 0:
+        row = np.asarray(positions).reshape(-1, 3)[i]
+        raise doc.err(f"{what}: vertex {i} is {coordinates_text(row)}: {BAD_COORDINATES}")
 
 
 def _geometry(doc: Document, path: Path, order: list[int], features: dict, notes: dict, materials: list,
@@ -330,7 +371,7 @@ def _geometry(doc: Document, path: Path, order: list[int], features: dict, notes
     pieces: list[Piece] = []
     objects: list[SceneObject] = []     # one per node that draws a primitive
     piece_object: list[int] = []
-    paths = _node_paths(nodes_json)
+    path_of = _node_paths(nodes_json, order)
     for n in order:
         node = nodes_json[n]
         if "mesh" not in node:
@@ -351,7 +392,10 @@ def _geometry(doc: Document, path: Path, order: list[int], features: dict, notes
                     features.setdefault("point and line primitives", f"not drawn (first: {what})")
                 continue
             attrs = prim["attributes"]
+            _charge_piece(doc, n, mi, p, prim, what)
             matrix, positions, faces, normals = geometry.primitive(n, mi, p, prim)
+            position_ref = f"{what} POSITION (accessors[{attrs['POSITION']}])"
+            _check_positions(doc, positions, position_ref)
             check_faces(faces, len(positions), path, what)
             uvs = doc.accessor(attrs["TEXCOORD_0"]) if "TEXCOORD_0" in attrs else None
             sets = [k for k in attribute_sets(attrs, "TEXCOORD") if k > 0]
@@ -396,9 +440,10 @@ def _geometry(doc: Document, path: Path, order: list[int], features: dict, notes
                 matrix = animation.add_mesh(len(pieces), n, matrix)
             pieces.append(world_piece(name, matrix, positions, faces, mat, normals, uvs, colors, tangents,
                                       extra_uvs, tangent_uv))
+            _check_positions(doc, pieces[-1].positions, f"{position_ref} placed by node {n}'s world transform")
         if len(pieces) > first_piece:
             piece_object.extend([len(objects)] * (len(pieces) - first_piece))
-            objects.append(SceneObject(node_name, mesh_name, paths[n], node.get("extras"), n))
+            objects.append(SceneObject(node_name, mesh_name, path_of(n), node.get("extras"), n))
 
     deformation = None
     if deformers:               # the load pose (rest transforms, default weights) into the pieces
@@ -409,6 +454,7 @@ def _geometry(doc: Document, path: Path, order: list[int], features: dict, notes
             old = pieces[d.mesh]
             pieces[d.mesh] = Piece(old.name, p, old.faces, old.material, nrm, old.uvs, old.colors, tan,
                                    old.extra_uvs)
+            _check_positions(doc, p, f"mesh {old.name!r} posed by its skin or morph targets at load")
     scene = assemble(pieces, materials, textures, str(path), objects=objects, piece_object=piece_object)
     if deformation is not None:
         firsts = np.cumsum([0] + [len(p.positions) for p in pieces])

@@ -204,6 +204,14 @@ def draco_accessor(doc, index: int) -> Optional[np.ndarray]:
     ext = prim["extensions"][DRACO]
     v = ext["bufferView"]
     where = f"{what}: the {DRACO} data (bufferView {v})"
+    # the decoded arrays are the accessors' sizes (checked against them after decoding): their
+    # counts are charged to the load's memory budget before DracoPy allocates anything
+    from . import budget
+    from .gltf_document import accessor_bytes
+    filled = {prim["attributes"][n] for n in ext["attributes"]}
+    filled |= {prim["indices"]} if "indices" in prim else set()
+    budget.current().charge(sum(accessor_bytes(doc.json["accessors"][a]) for a in filled), doc.path,
+                            f"{where}: the counts of accessors {sorted(filled)}")
     data = bytes(doc.view_bytes(v))
     if not data.startswith(b"DRACO"):       # what DracoPy checks too; a clearer message
         raise doc.err(f"{where} is not Draco data (no 'DRACO' header)")
@@ -259,8 +267,12 @@ def meshopt_view(doc, index: int) -> Optional[memoryview]:
     meshopt = _decoder(doc, MESHOPT, what)
     ext = view["extensions"][MESHOPT]
     off, length = ext.get("byteOffset", 0), ext["byteLength"]
-    src = bytes(memoryview(doc.buffers[ext["buffer"]])[off:off + length])
     count, stride, mode, filt = ext["count"], ext["byteStride"], ext["mode"], ext.get("filter", "NONE")
+    # count x byteStride decoded bytes (plus the decoder's own copy) from a few compressed ones
+    from . import budget
+    budget.current().charge(2 * count * stride, doc.path,
+                            f"bufferViews[{index}].extensions.{MESHOPT}.count ({count} x byteStride {stride})")
+    src = bytes(memoryview(doc.buffers[ext["buffer"]])[off:off + length])
     try:
         if count == 0:
             out = b""

@@ -26,8 +26,9 @@ from urllib.parse import unquote
 import numpy as np
 
 from ..scene import SceneError
+from . import budget, confine
 from . import gltf_compression as compression
-from .common import fail
+from .common import fail, parse_nested
 
 COMPONENT_TYPES = {5120: "<i1", 5121: "<u1", 5122: "<i2", 5123: "<u2", 5125: "<u4", 5126: "<f4"}
 TYPE_SIZES = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4, "MAT2": 4, "MAT3": 9, "MAT4": 16}
@@ -127,6 +128,7 @@ class Document:
         dtype = np.dtype(COMPONENT_TYPES[acc["componentType"]])
         ncomp = TYPE_SIZES[acc["type"]]
         count = acc["count"]
+        budget.current().charge(accessor_bytes(acc), self.path, accessor_field(index, acc))
         if "bufferView" in acc:
             arr = _strided(self.view_bytes(acc["bufferView"]), acc.get("byteOffset", 0),
                            self.json["bufferViews"][acc["bufferView"]].get("byteStride"),
@@ -164,6 +166,17 @@ class Document:
         return arr
 
 
+def accessor_bytes(acc: dict) -> int:
+    """What decoding an accessor costs: its data, and the float64 copy every loader path makes of it."""
+    n = acc["count"] * TYPE_SIZES[acc["type"]]
+    return n * (np.dtype(COMPONENT_TYPES[acc["componentType"]]).itemsize + 8)
+
+
+def accessor_field(index: int, acc: dict) -> str:
+    """'accessors[3].count (402653184 x VEC3 of FLOAT)': the field a budget error names."""
+    return f"accessors[{index}].count ({acc['count']} x {acc['type']} of {COMPONENT_NAMES[acc['componentType']]})"
+
+
 def _strided(buf: memoryview, offset: int, stride: Optional[int], dtype: np.dtype, ncomp: int,
              count: int) -> np.ndarray:
     elem = dtype.itemsize * ncomp
@@ -188,6 +201,7 @@ def read_document(path: Path) -> Document:
     """The JSON (and GLB binary chunk) of `path`; buffers are loaded by `validate`."""
     doc = Document(path)
     try:
+        budget.current().charge(path.stat().st_size, path, "the file itself")
         data = path.read_bytes()
     except OSError as exc:
         raise doc.err(f"cannot read file ({exc.strerror or exc})") from None
@@ -198,7 +212,8 @@ def read_document(path: Path) -> Document:
     else:
         text = data
     try:
-        doc.json = json.loads(text.decode("utf-8-sig") if isinstance(text, bytes) else text)
+        doc.json = parse_nested(doc.path, json.loads, text.decode("utf-8-sig") if isinstance(text, bytes) else text,
+                                "the glTF JSON")
     except UnicodeDecodeError as exc:
         raise doc.err(f"the glTF JSON is not UTF-8 ({exc.reason} at byte {exc.start})") from None
     except json.JSONDecodeError as exc:
@@ -278,13 +293,16 @@ def _validate_inner(doc: Document) -> None:
                 data = b""
             else:
                 raise doc.err(f"buffer {k} has no uri (and there is no GLB binary chunk for it)")
-        elif uri.startswith("data:"):
+        elif isinstance(uri, str) and uri.startswith("data:"):
             data = data_uri(doc, uri, f"buffer {k}")
         else:
-            file = doc.base / unquote(uri)
+            file = confine.gltf_uri(doc.path, uri, f"buffer {k} uri")   # inside the scene's folder, or refused
             if not file.is_file():
                 raise doc.err(f"buffer {k}: file not found: {file}")
-            data = file.read_bytes()
+            # only byteLength bytes are used: a larger file is not read whole
+            budget.current().charge(min(length, file.stat().st_size), doc.path, f"buffers[{k}] ({uri!r})")
+            with open(file, "rb") as fh:
+                data = fh.read(length)
         if len(data) < length and k not in doc.placeholder_buffers:
             raise doc.err(f"buffer {k} ({uri or 'GLB chunk'}) has {len(data)} bytes, "
                           f"but its byteLength is {length}")
@@ -301,7 +319,10 @@ def _validate_inner(doc: Document) -> None:
             raise doc.err(f"bufferView {v} (bytes {off}..{off + length}) runs past the end of buffer {b} "
                           f"({size} bytes)")
         if "byteStride" in view:
-            _int(view["byteStride"], f"bufferViews[{v}].byteStride", doc, 1)
+            # the schema: a multiple of 4 in [4, 252] (vertex attributes are 4-byte aligned, §3.6.2.4)
+            stride = _int(view["byteStride"], f"bufferViews[{v}].byteStride", doc, 1)
+            if stride % 4 or not 4 <= stride <= 252:
+                raise doc.err(f"bufferViews[{v}].byteStride must be a multiple of 4 in [4, 252], got {stride}")
         compression.validate_view(doc, v, view)
 
     # accessors
@@ -312,14 +333,23 @@ def _validate_inner(doc: Document) -> None:
             raise doc.err(f"accessor {a}: unknown type {acc.get('type')!r}")
         count = _int(acc.get("count"), f"accessors[{a}].count", doc)
         elem = np.dtype(COMPONENT_TYPES[acc["componentType"]]).itemsize * TYPE_SIZES[acc["type"]]
+        # without a bufferView the count alone sizes the array (zeros): checked before anything is made
+        budget.current().check(accessor_bytes(acc), doc.path, accessor_field(a, acc))
         if "bufferView" in acc:
             view = doc.get("bufferViews", acc["bufferView"], f"accessor {a}")
+            stride = view.get("byteStride")
+            if stride is not None and stride < elem:        # each element would overlap the next one
+                raise doc.err(f"accessors[{a}] ({acc['type']} of {COMPONENT_NAMES[acc['componentType']]}, {elem} "
+                              f"bytes each) reads bufferViews[{acc['bufferView']}] with byteStride {stride}, "
+                              f"smaller than one element")
             _check_range(doc, f"accessor {a}", acc["bufferView"], view,
                          _int(acc.get("byteOffset", 0), f"accessors[{a}].byteOffset", doc),
                          view.get("byteStride") or elem, elem, count)
         sparse = acc.get("sparse")
         if sparse:
             n = _int(sparse.get("count"), f"accessors[{a}].sparse.count", doc)
+            if n > count:
+                raise doc.err(f"accessors[{a}].sparse.count ({n}) is more than the accessor's count ({count})")
             for part, size in (("indices", None), ("values", elem)):
                 info = sparse[part]
                 if part == "indices":
@@ -393,6 +423,12 @@ def _validate_inner(doc: Document) -> None:
             if mode == MODE_TRIANGLES and n % 3:
                 raise doc.err(f"{what}: {n} indices is not a multiple of 3 for TRIANGLES")
 
+    # names become mesh, object and material names (paths joined with "/", fnmatch patterns): strings only
+    for key in ("nodes", "meshes", "materials", "cameras", "animations", "skins", "textures", "images", "scenes"):
+        for i, item in enumerate(doc.list(key)):
+            if isinstance(item, dict) and "name" in item and not isinstance(item["name"], str):
+                raise doc.err(f"{key}[{i}].name must be a string, got {type(item['name']).__name__}")
+
     # nodes, scenes, cameras, KHR_lights_punctual lights
     lights = punctual_lights(doc)
     _validate_lights(doc, lights)
@@ -464,20 +500,27 @@ def extensions_in_use(doc: Document) -> dict[str, str]:
     the document (root, materials, textureInfos, nodes, primitives, ...); `extras` are not searched."""
     found: dict[str, str] = {}
 
-    def walk(value, where: str):
+    def where(at) -> str:           # at = (parent's at, key or index): spelled out only when needed
+        parts = []
+        while at is not None:
+            at, part = at
+            parts.append(f"[{part}]" if isinstance(part, int) else f".{part}")
+        return "".join(reversed(parts)).lstrip(".") or "the top level"
+
+    stack = [(doc.json, None)]      # depth-first, in document order, without recursion (issue 34)
+    while stack:
+        value, at = stack.pop()
         if isinstance(value, dict):
             ext = value.get("extensions")
             if isinstance(ext, dict):
                 for name in ext:
-                    found.setdefault(str(name), where or "the top level")
-            for key, child in value.items():
-                if key != "extras":
-                    walk(child, f"{where}.{key}" if where else key)
+                    if str(name) not in found:
+                        found[str(name)] = where(at)
+            stack.extend((child, (at, key)) for key, child in reversed(value.items())
+                         if key != "extras" and isinstance(child, (dict, list)))
         elif isinstance(value, list):
-            for i, child in enumerate(value):
-                walk(child, f"{where}[{i}]")
-
-    walk(doc.json, "")
+            stack.extend((value[i], (at, i)) for i in range(len(value) - 1, -1, -1)
+                         if isinstance(value[i], (dict, list)))
     for name in doc.json.get("extensionsUsed", []) or []:
         if isinstance(name, str):
             found.setdefault(name, "extensionsUsed")

@@ -9,7 +9,12 @@ networkx included, became most of a load's time), so the arrays are the same bit
 * a node's world matrix: the edge matrices from its root down, plus an identity edge to a primitive
   when the mesh has several (triangle) primitives; a root's own edge is used as is, longer chains drop
   matrices within 1e-8 of identity and multiply the rest with np.linalg.multi_dot; then trimesh's
-  fix_rigid (an almost-orthonormal 3x3, off by 1e-13 to 1e-5, is replaced by its SVD rotation);
+  fix_rigid (an almost-orthonormal 3x3, off by 1e-13 to 1e-5, is replaced by its SVD rotation).
+  multi_dot of equal 4x4s multiplies from the right (A (B (C D))) after an O(n^3) search for that
+  order: `_right_product` does the same multiplications without the search. That product cannot be
+  extended from a parent to a child, so only chains of at most EXACT_CHAIN kept edges are trimesh's
+  bit for bit; a node deeper than that gets its parent's product times its edge (equal up to float
+  rounding, ~1e-15 relative per level), so any depth costs one 4x4 product per node (issue 34);
 * faces: the indices as (-1, 3) int64, strips unrolled with every other triangle flipped, no
   indices: 0, 1, 2, ...; positions and normals: the accessors as float64.
 
@@ -20,6 +25,7 @@ from __future__ import annotations
 
 import io
 import json
+import math
 import os
 import re
 
@@ -31,6 +37,8 @@ from .gltf_document import MODE_STRIP, MODE_TRIANGLES, Document
 ENV_TRIMESH = "CLRENDER_GLTF_TRIMESH"
 _EYE = np.eye(4)
 _EPS = np.finfo(float).eps * 4.0
+# chains of at most this many kept edges are multiplied as trimesh does, bit for bit (module doc)
+EXACT_CHAIN = 32
 
 
 def triangle_primitives(mesh: dict) -> list[tuple[int, dict]]:
@@ -47,18 +55,24 @@ def geometry_for(doc: Document, order: list[int]):
 
 # -- the numpy path ---------------------------------------------------------------------------------
 def quaternion_matrix(wxyz) -> np.ndarray:
+    """trimesh.transformations.quaternion_matrix bit for bit: the norm by numpy's dot as trimesh's, the
+    rest the same IEEE operations on Python floats (four times faster on 4-vectors: deep chains)."""
     q = np.array(wxyz, dtype=np.float64).reshape((-1, 4))
     n = np.dot(q * q, [1.0] * 4)
     if n[0] < _EPS:
         return np.eye(4)
-    q *= np.sqrt(2.0 / n[:, None])
-    q = (q[:, None, :] * q[:, :, None])[0]
-    r = np.zeros((4, 4))
-    r[0, 0], r[0, 1], r[0, 2] = 1.0 - q[2, 2] - q[3, 3], q[1, 2] - q[3, 0], q[1, 3] + q[2, 0]
-    r[1, 0], r[1, 1], r[1, 2] = q[1, 2] + q[3, 0], 1.0 - q[1, 1] - q[3, 3], q[2, 3] - q[1, 0]
-    r[2, 0], r[2, 1], r[2, 2] = q[1, 3] - q[2, 0], q[2, 3] + q[1, 0], 1.0 - q[1, 1] - q[2, 2]
-    r[3, 3] = 1.0
-    return r
+    s = math.sqrt(2.0 / float(n[0]))
+    w, x, y, z = (float(v) * s for v in q[0])
+    return np.array([[1.0 - y * y - z * z, x * y - z * w, x * z + y * w, 0.0],
+                     [x * y + z * w, 1.0 - x * x - z * z, y * z - x * w, 0.0],
+                     [x * z - y * w, y * z + x * w, 1.0 - x * x - y * y, 0.0],
+                     [0.0, 0.0, 0.0, 1.0]])
+
+
+def _then(m: np.ndarray, factor: np.ndarray) -> np.ndarray:
+    """np.dot(m, factor); identity times an affine factor is the factor plus 0.0 (each entry's sum has
+    a +0.0 product from the factor's last row, so -0.0 turns +0.0, as in the product), bit for bit."""
+    return factor + 0.0 if m is _EYE else np.dot(m, factor)
 
 
 def edge_matrix(node: dict) -> np.ndarray:
@@ -66,11 +80,11 @@ def edge_matrix(node: dict) -> np.ndarray:
     if "translation" in node:
         t = np.eye(4)
         t[:3, 3] = node["translation"][:3]
-        m = np.dot(m, t)
+        m = _then(m, t)
     if "rotation" in node:
-        m = np.dot(m, quaternion_matrix(np.reshape(node["rotation"], 4)[[3, 0, 1, 2]]))
+        m = _then(m, quaternion_matrix(np.reshape(node["rotation"], 4)[[3, 0, 1, 2]]))
     if "scale" in node:
-        m = np.dot(m, np.diag(np.concatenate((node["scale"], [1.0]))))
+        m = _then(m, np.diag(np.concatenate((node["scale"], [1.0]))))
     return m
 
 
@@ -85,13 +99,27 @@ def fix_rigid(matrix: np.ndarray, max_deviance: float = 1e-5) -> np.ndarray:
     return matrix
 
 
+def _kept(m: np.ndarray) -> bool:
+    """trimesh drops edges within 1e-8 of identity from chains of two or more edges."""
+    return bool(np.abs(m - _EYE).max() > 1e-8)
+
+
+def _right_product(kept: list[np.ndarray]) -> np.ndarray:
+    """np.linalg.multi_dot(kept) bit for bit for 4x4 matrices, in linear time: with equal shapes every
+    order costs the same, and numpy's search keeps the first split, A (B (C ...)), for n = 3 too."""
+    matrix = kept[-1]
+    for m in reversed(kept[:-1]):
+        matrix = np.dot(m, matrix)
+    return matrix
+
+
 def chain_matrix(edges: list[np.ndarray]) -> np.ndarray:
-    """World matrix of a frame reached through `edges` from the scene's base frame."""
+    """World matrix of a frame reached through `edges` from the scene's base frame (trimesh's)."""
     if len(edges) == 1:
         matrix = edges[0]
     else:
-        kept = [m for m in edges if np.abs(m - _EYE).max() > 1e-8]
-        matrix = _EYE if not kept else kept[0] if len(kept) == 1 else np.linalg.multi_dot(kept)
+        kept = [m for m in edges if _kept(m)]
+        matrix = _EYE if not kept else _right_product(kept)
     return fix_rigid(matrix)
 
 
@@ -107,18 +135,56 @@ class NumpyGeometry:
         self.doc = doc
         nodes = doc.list("nodes")
         parent = {c: n for n in order for c in nodes[n].get("children", [])}
-        self.edges: dict[int, list] = {}
+        self._root_edge: dict[int, np.ndarray] = {}     # a root's own edge (a one-edge chain is used as is)
+        # node -> (count, cell): its kept edges from the root as a shared linked list, cell = (edge,
+        # parent's cell), while count <= EXACT_CHAIN; O(1) memory per node whatever the depth
+        self._chain: dict[int, tuple] = {}
+        self._product: dict[int, np.ndarray] = {}       # deeper nodes: parent's product . edge
         for n in order:                       # pre-order: parents first
-            self.edges[n] = (self.edges[parent[n]] if n in parent else []) + [edge_matrix(nodes[n])]
+            edge = edge_matrix(nodes[n])
+            keep = _kept(edge)
+            p = parent.get(n)
+            if p is None:
+                self._root_edge[n] = edge
+                self._chain[n] = (1, (edge, None)) if keep else (0, None)
+            elif p in self._product:
+                self._product[n] = np.dot(self._product[p], edge) if keep else self._product[p]
+            elif not keep:
+                self._chain[n] = self._chain[p]
+            elif self._chain[p][0] < EXACT_CHAIN:
+                count, cell = self._chain[p]
+                self._chain[n] = (count + 1, (edge, cell))
+            else:                             # one past the exact bound: the parent's exact product . edge
+                self._product[n] = np.dot(self._exact(p), edge)
+
+    def _exact(self, n: int) -> np.ndarray:
+        """The raw (before fix_rigid) product of n's kept edges, as multi_dot: from the node up."""
+        count, cell = self._chain[n]
+        if count == 0:
+            return _EYE
+        matrix, cell = cell
+        while cell is not None:
+            edge, cell = cell
+            matrix = np.dot(edge, matrix)
+        return matrix
+
+    def world(self, n: int, extra_edge: bool = False) -> np.ndarray:
+        """chain_matrix of n's edges from its root (plus an identity edge to a primitive when
+        `extra_edge`), in at most EXACT_CHAIN products (module doc)."""
+        if n in self._product:
+            return fix_rigid(self._product[n])
+        if n in self._root_edge and not extra_edge:
+            return fix_rigid(self._root_edge[n])
+        return fix_rigid(self._exact(n))
 
     def node_matrix(self, n: int) -> np.ndarray:
-        return chain_matrix(self.edges[n])
+        return self.world(n)
 
     def primitive(self, n: int, mesh_index: int, p: int, prim: dict):
         """(world matrix, positions float64, faces int64 (-1, 3), file normals float64 or None)."""
         doc, mesh = self.doc, self.doc.list("meshes")[mesh_index]
         several = len(triangle_primitives(mesh)) > 1
-        matrix = chain_matrix(self.edges[n] + ([_EYE] if several else []))
+        matrix = self.world(n, extra_edge=several)
         attrs = prim["attributes"]
         positions = doc.accessor(attrs["POSITION"]).astype(np.float64)
         strip = prim.get("mode", MODE_TRIANGLES) == MODE_STRIP

@@ -15,6 +15,7 @@ import warnings
 from urllib.parse import unquote
 
 from ..scene import TEXTURE_SLOTS, Material, SceneError, Texture, UVTransform
+from . import confine
 from .common import decode_image, start_images
 from .gltf_document import (TEXTURE_INFOS, WRAP_MODES, Document, data_uri, material_textures, texcoord_of,
                             texture_source)
@@ -128,10 +129,15 @@ def load_materials(doc: Document, features: dict):
 
 
 def _tolerant(job):
-    """The image job, returning its SceneError (missing or undecodable file) instead of raising it."""
+    """The image job, returning its SceneError (missing or undecodable file) instead of raising it.
+    An image over the memory budget is raised: the load fails rather than silently losing it."""
+    from .budget import BudgetError
+
     def run():
         try:
             return job()
+        except BudgetError:
+            raise
         except SceneError as exc:
             return exc
     return run
@@ -166,8 +172,9 @@ def _image_job(doc: Document, index: int, img: dict):
     uri = img.get("uri")
     if not uri:
         raise doc.err(f"image {index} has neither a uri nor a bufferView")
-    if uri.startswith("data:"):
+    if isinstance(uri, str) and uri.startswith("data:"):
         data = data_uri(doc, uri, f"image {index}")
         return lambda: decode_image(data, where)
-    file = doc.base / unquote(uri)
+    # outside the scene's folder: an error now (not the tolerant warning of a missing file)
+    file = confine.gltf_uri(doc.path, uri, f"image {index} uri")
     return lambda: decode_image(file, where)        # a missing file: SceneError "texture file not found"

@@ -22,6 +22,8 @@ import numpy as np
 
 from ..deform import Deformer, Skin, normalize_weights
 from ..errors import SceneError
+from . import budget
+from ..scene import BAD_COORDINATES, bad_vertex, coordinates_text
 from .gltf_document import Document, attribute_sets
 
 MORPH_ATTRIBUTES = ("POSITION", "NORMAL", "TANGENT")
@@ -101,6 +103,9 @@ def morph_targets(doc: Document, what: str, prim: dict, count: int) -> dict:
     for a in MORPH_ATTRIBUTES:
         if not any(a in t for t in targets):
             continue
+        # targets x vertices float32 deltas: a short list naming one accessor many times is a large array
+        budget.current().charge(len(targets) * count * 12, doc.path,
+                                f"{what}: {a} morph targets ({len(targets)} targets x {count} vertices)")
         deltas = np.zeros((len(targets), count, 3), np.float32)
         for k, target in enumerate(targets):
             if a not in target:
@@ -111,8 +116,10 @@ def morph_targets(doc: Document, what: str, prim: dict, count: int) -> dict:
             if d.shape != (count, 3):
                 raise doc.err(f"{what}: morph target {k} {a} (accessor {acc}) has shape {d.shape}, the primitive "
                               f"has {count} vertices (VEC3 each)")
-            if not np.isfinite(d).all():
-                raise doc.err(f"{what}: morph target {k} {a} (accessor {acc}) has non-finite values")
+            i = bad_vertex(d)          # deltas add to positions: the same bound (NaN, inf, beyond 1e30)
+            if i >= 0:
+                raise doc.err(f"{what}: morph target {k} {a} (accessors[{acc}]): vertex {i} is "
+                              f"{coordinates_text(d[i])}: {BAD_COORDINATES.replace('vertex coordinates', 'deltas')}")
             deltas[k] = d
         out[a] = deltas
     return out
@@ -123,7 +130,11 @@ def default_weights(doc: Document, what: str, node: dict, mesh: dict, targets: i
     for owner, w in (("node", node.get("weights")), ("mesh", mesh.get("weights"))):
         if w is None:
             continue
-        w = np.asarray(w, np.float64).reshape(-1)
+        try:
+            w = np.asarray(w, np.float64).reshape(-1)
+        except (TypeError, ValueError):       # {"x": 1}, [[1], [2, 3]], strings: not numbers
+            raise doc.err(f"{what}: {owner}.weights must be {targets} finite numbers (one per morph target), "
+                          f"got {type(w).__name__}") from None
         if len(w) != targets or not np.isfinite(w).all():
             raise doc.err(f"{what}: {owner}.weights must be {targets} finite numbers (one per morph target), "
                           f"got {len(w)}")

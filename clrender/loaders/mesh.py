@@ -20,7 +20,8 @@ from typing import Optional
 
 import numpy as np
 
-from ..scene import Material, Scene, SceneObject, Texture
+from ..scene import BAD_COORDINATES, Material, Scene, SceneError, SceneObject, Texture, bad_vertex, coordinates_text
+from . import confine
 from .common import (Piece, assemble, check_faces, decode_image, fail, flip_v, load_images,
                      trimesh_load, trimesh_vertex_normals, world_piece)
 
@@ -29,11 +30,36 @@ _MAP_OPTIONS = {"-blendu": 1, "-blendv": 1, "-bm": 1, "-boost": 1, "-cc": 1, "-c
                 "-mm": 2, "-texres": 1, "-type": 1, "-o": 3, "-s": 3, "-t": 3}
 
 
+def _finite(text: str) -> float:
+    """An MTL number; nan and inf are not numbers a material can hold (ValueError, as for garbage)."""
+    value = float(text)
+    if not np.isfinite(value):
+        raise ValueError(text)
+    return value
+
+
 def _read_text(path: Path) -> str:
     try:
         return path.read_bytes().decode("utf-8", errors="replace")
     except OSError as exc:
         raise fail(path, f"cannot read file ({exc.strerror or exc})") from None
+
+
+def _vetted_resolver(path: Path, served: dict):
+    """A trimesh resolver for `path` that hands out only the files clrender has already checked
+    (`served`: the name as written in the file -> its path): trimesh finds `mtllib` anywhere in the
+    text (a comment too) and reads map_Kd/TextureFile images itself; clrender reads the materials and
+    textures on its own, so trimesh needs nothing else and must not open anything else."""
+    from trimesh.resolvers import FilePathResolver
+
+    class Vetted(FilePathResolver):
+        def get(self, name):
+            file = served.get(str(name).strip())
+            if file is None:
+                raise FileNotFoundError(name)       # trimesh catches it and goes on without that asset
+            return file.read_bytes()
+
+    return Vetted(str(path))
 
 
 def _trimesh_geometries(tm_scene):
@@ -62,11 +88,41 @@ _NUM = r"[-+]?(?:(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?|nan|inf(?:inity)?)"
 _BAD_VERTEX = re.compile(rf"^v[ \t](?![ \t]*{_NUM}(?:[ \t]+{_NUM}){{2,6}}[ \t]*(?:#.*)?\r?$).*$", re.M | re.I)
 
 
+def _check_obj_vertices(path: Path, text: str, geoms) -> None:
+    """A NaN, infinite or absurd (beyond ±1e30) vertex that a face uses: one line naming the file
+    line and the OBJ vertex number (the triangle would otherwise vanish from the render silently).
+    The loaded arrays are checked first (fast); only then is the text searched for the line."""
+    if all(bad_vertex(geom.vertices) < 0 for _, _, _, geom in geoms):
+        return
+    number = 0
+    for lineno, line in enumerate(text.splitlines(), 1):
+        if not re.match(r"v[ \t]", line):
+            continue
+        number += 1
+        try:
+            xyz = np.array([float(v) for v in line.split("#", 1)[0].split()[1:4]])
+        except ValueError:
+            continue                    # _check_obj_indices refused such lines already
+        if bad_vertex(xyz) == 0:
+            raise fail(path, f"line {lineno}: vertex {number} is {coordinates_text(xyz)}: {BAD_COORDINATES}")
+    for _, _, gname, geom in geoms:     # not found in the text: name the geometry and its vertex
+        i = bad_vertex(geom.vertices)
+        if i >= 0:
+            raise fail(path, f"geometry {gname!r}: vertex {i} is {coordinates_text(geom.vertices[i])}: "
+                             f"{BAD_COORDINATES}")
+
+
+def _snippet(text: str, limit: int = 40) -> str:
+    """A short quote of the offending statement (never a whole line of an arbitrary file)."""
+    text = text.strip()
+    return repr(text) if len(text) <= limit else repr(text[:limit]) + f" ... ({len(text)} characters)"
+
+
 def _check_obj_indices(path: Path, text: str) -> None:
     bad_vertex = _BAD_VERTEX.search(text)
     if bad_vertex:
         line = text.count("\n", 0, bad_vertex.start()) + 1
-        raise fail(path, f"line {line}: cannot parse vertex {bad_vertex.group(0).strip()!r} (needs 3 numbers)")
+        raise fail(path, f"line {line}: cannot parse vertex {_snippet(bad_vertex.group(0))} (needs 3 numbers)")
     counts = {key: len(re.findall(rf"^{key}[ \t]", text, re.M)) for key in ("v", "vt", "vn")}
     tokens = " ".join(re.findall(r"^f[ \t]+([^\n]*)", text, re.M)).split()
     if not tokens:
@@ -85,7 +141,11 @@ def _check_obj_indices(path: Path, text: str) -> None:
             idx = np.array(found, dtype=np.int64)
         except ValueError:
             bad = next(t for t in found if not re.fullmatch(r"[-+]?\d+", t))
-            raise fail(path, f"face {key} index {bad!r} is not an integer") from None
+            raise fail(path, f"face {key} index {_snippet(bad)} is not an integer") from None
+        except OverflowError:             # integers beyond int64: out of range whatever the file holds
+            big = max(found, key=lambda t: len(t.lstrip("+-0")))
+            raise fail(path, f"face {key} index {_snippet(big)} is out of range (there are {counts[key]} "
+                             f"{key} entries)") from None
         n = counts[key]
         bad = (idx == 0) | (idx > n) | (idx < -n)
         if bad.any():
@@ -119,16 +179,25 @@ _MTL_KEYS = {"newmtl", "ka", "kd", "ks", "ke", "ns", "ni", "d", "tr", "tf", "ill
              "decal", "refl", "norm", "pr", "pm", "ps", "pc", "pcr", "aniso", "anisor"}
 
 
+_KEYWORD = re.compile(r"[A-Za-z_][A-Za-z0-9_]{0,23}")
+
+
 def _parse_mtl(file: Path, where: Path) -> dict[str, dict]:
+    """The materials of an MTL file. Messages name line numbers and statement keywords, never the
+    file's text: `mtllib` may name any file, and its lines are not ours to print."""
     materials: dict[str, dict] = {}
     current = None
     unknown = []
+    garbled = 0                     # lines that do not start with a keyword at all
     for lineno, raw in enumerate(_read_text(file).splitlines(), 1):
         line = raw.split("#", 1)[0].strip()
         if not line:
             continue
         parts = line.split()
         key, args = parts[0].lower(), parts[1:]
+        if not _KEYWORD.fullmatch(parts[0]):
+            garbled += 1
+            continue
         if key not in _MTL_KEYS and not key.startswith("map_"):
             unknown.append(f"line {lineno}: {parts[0]!r}")
         if key == "newmtl":
@@ -138,20 +207,28 @@ def _parse_mtl(file: Path, where: Path) -> dict[str, dict]:
             continue
         try:
             if key in ("kd", "ks") and args and args[0].lower() not in ("spectral", "xyz"):
-                values = [float(a) for a in args[:3]]
+                values = [_finite(a) for a in args[:3]]
+                if len(values) == 2:      # the MTL form is "r" (grey) or "r g b"
+                    raise ValueError
                 current[key] = tuple(values * 3)[:3] if len(values) == 1 else tuple(values)
             elif key == "ns" and args:
-                current["ns"] = float(args[0])
+                current["ns"] = _finite(args[0])
             elif key == "d" and args:
-                current["d"] = float(args[-1])
+                current["d"] = _finite(args[-1])
             elif key == "tr" and args:
-                current["d"] = 1.0 - float(args[0])
+                current["d"] = 1.0 - _finite(args[0])
             elif key == "map_kd":
                 name, clamp = _parse_map(args)
                 if name:
                     current["map_kd"] = (name.replace("\\", "/"), clamp)
         except ValueError:
-            raise fail(file, f"line {lineno}: cannot parse {raw.strip()!r}") from None
+            raise fail(file, f"line {lineno}: cannot parse the numbers of {parts[0]!r}") from None
+    if (garbled or unknown) and not materials:      # not a material library: say so, show none of it
+        bad = garbled + len(unknown)
+        raise fail(where, f"material library {file} is not an MTL file (no newmtl statement, {bad} "
+                          f"line{'s' if bad > 1 else ''} that are not MTL statements)")
+    if garbled:
+        unknown.append(f"{garbled} line{'s' if garbled > 1 else ''} not starting with a statement keyword")
     if unknown:
         warnings.warn(f"{file}: unknown MTL statements ignored: {'; '.join(unknown[:5])}"
                       f"{' ...' if len(unknown) > 5 else ''}", stacklevel=4)
@@ -162,14 +239,16 @@ def _obj_materials(path: Path, text: str):
     """MTL materials as clrender Materials: (name -> index, materials, textures)."""
     libs = re.findall(r"^mtllib[ \t]+([^\n]+?)[ \t]*$", text, re.M)
     parsed: dict[str, dict] = {}
-    mtl_dirs: dict[str, Path] = {}
+    mtl_files: dict[str, Path] = {}
+    served: dict[str, Path] = {}         # the libraries trimesh may read too (_vetted_resolver)
     for lib in libs:
-        file = path.parent / lib.strip().replace("\\", "/")
+        file = confine.reference(path, lib.strip().replace("\\", "/"), "mtllib")
         if not file.is_file():
             raise fail(path, f"material library not found: {file}")
+        served[lib.strip()] = file
         for name, props in _parse_mtl(file, path).items():
             parsed.setdefault(name, props)
-            mtl_dirs.setdefault(name, file.parent)
+            mtl_files.setdefault(name, file)
     index: dict[str, int] = {}
     materials: list[Material] = []
     slots: dict[tuple, int] = {}
@@ -178,7 +257,7 @@ def _obj_materials(path: Path, text: str):
         tex = -1
         if "map_kd" in props:
             rel, clamp = props["map_kd"]
-            file = (mtl_dirs[name] / rel)
+            file = confine.reference(mtl_files[name], rel, f"map_Kd of material {name!r}")
             if not file.is_file():
                 raise fail(path, f"texture file not found: {file} (map_Kd of material {name!r})")
             key = (str(file.resolve()), clamp)
@@ -195,18 +274,21 @@ def _obj_materials(path: Path, text: str):
         if "ns" in props:
             kw["specular_power"] = float(np.clip(props["ns"], 1.0, 2048.0))
         index[name] = len(materials)
-        materials.append(Material(name=name, base_color=(*kd, props.get("d", 1.0)), base_color_texture=tex,
-                                  double_sided=True, **kw))
+        try:
+            materials.append(Material(name=name, base_color=(*kd, props.get("d", 1.0)), base_color_texture=tex,
+                                      double_sided=True, **kw))
+        except SceneError as exc:         # the Material's own check names no file: the MTL that made it
+            raise fail(mtl_files[name], str(exc)) from None
     pixels = load_images(jobs)
     textures = [Texture(n, rgba, w, w, srgb=True) for n, rgba, w in zip(tex_names, pixels, wraps)]
-    return index, materials, textures
+    return index, materials, textures, served
 
 
 def load_obj(path) -> Scene:
     path = Path(path)
     text = _read_text(path)
     _check_obj_indices(path, text)
-    index, materials, textures = _obj_materials(path, text)
+    index, materials, textures, served = _obj_materials(path, text)
     first_use = {}
     for name in re.findall(r"^usemtl[ \t]+([^\n]*?)[ \t]*$", text, re.M):
         first_use.setdefault(name, len(first_use))
@@ -216,8 +298,10 @@ def load_obj(path) -> Scene:
 
     # o/g groups are the file's objects (Scene.objects): trimesh then splits per (group, material)
     grouped = re.search(r"^[og][ \t]+\S", text, re.M) is not None
-    tm_scene = trimesh_load(str(path), process=False, file_type="obj", split_objects=grouped, split_groups=grouped)
+    tm_scene = trimesh_load(str(path), process=False, file_type="obj", split_objects=grouped, split_groups=grouped,
+                            resolver=_vetted_resolver(path, served))
     geoms = _trimesh_geometries(tm_scene)
+    _check_obj_vertices(path, text, geoms)
     default = None
     keyed = []
     for rank, (gnode, matrix, gname, geom) in enumerate(reversed(geoms)):
@@ -266,14 +350,16 @@ def _ply_texture(path: Path) -> Optional[Path]:
     match = re.search(r"^comment[ \t]+TextureFile[ \t]+([^\r\n]+?)[ \t]*\r?$", header, re.M | re.I)
     if not match:
         return None
-    file = path.parent / match.group(1).replace("\\", "/")
+    file = confine.reference(path, match.group(1).replace("\\", "/"), "comment TextureFile")
     if not file.is_file():
         raise fail(path, f"texture file not found: {file} (comment TextureFile)")
     return file
 
 
 def _load_simple(path: Path, file_type: str, texture_file: Optional[Path] = None) -> Scene:
-    tm_scene = trimesh_load(str(path), process=False, file_type=file_type)
+    # the PLY texture is decoded here (_ply_texture, confined): trimesh must not open it itself
+    tm_scene = trimesh_load(str(path), process=False, file_type=file_type, resolver=_vetted_resolver(path, {}),
+                            **({"skip_materials": True} if file_type == "ply" else {}))
     textures = []
     material = Material(name="default", double_sided=True)
     if texture_file is not None:
@@ -283,6 +369,10 @@ def _load_simple(path: Path, file_type: str, texture_file: Optional[Path] = None
     for gnode, matrix, gname, geom in sorted(_trimesh_geometries(tm_scene), key=lambda g: str(g[0])):
         faces = np.asarray(geom.faces, np.int64)
         check_faces(faces, len(geom.vertices), path, f"geometry {gname!r}")
+        i = bad_vertex(geom.vertices)   # process=False: the file's vertex order (STL: 3 per facet)
+        if i >= 0:
+            where = f"facet {i // 3} vertex {i % 3}" if file_type == "stl" else f"vertex {i}"
+            raise fail(path, f"{where} is {coordinates_text(geom.vertices[i])}: {BAD_COORDINATES}")
         pieces.append(world_piece(f"{gnode}/{gname}", matrix, geom.vertices, faces, 0,
                                   trimesh_vertex_normals(geom), _uv(geom)))
     return assemble(pieces, [material], textures, str(path))
@@ -295,4 +385,24 @@ def load_ply(path) -> Scene:
 
 def load_stl(path) -> Scene:
     """STL stores no vertex normals: flat, area-weighted normals come from the (unmerged) vertices."""
+    _check_stl(Path(path))
     return _load_simple(Path(path), "stl")
+
+
+def _check_stl(path: Path) -> None:
+    """A binary STL is 84 + 50·N bytes (N in its header); trimesh reads any other file as ASCII STL,
+    so a truncated binary one loaded as no triangles (or failed on a text-encoding guess). Refuse
+    a file that is neither a complete binary STL nor text starting with `solid`."""
+    size = path.stat().st_size
+    with open(path, "rb") as fh:
+        head = fh.read(84)
+    if len(head) == 84:
+        count = int.from_bytes(head[80:84], "little")
+        if size == 84 + 50 * count:
+            return
+    if head.lstrip()[:5].lower() == b"solid" and b"\0" not in head:
+        return                                        # ASCII STL: trimesh parses it
+    if len(head) < 84:
+        raise fail(path, f"truncated or corrupt STL: {size} bytes, shorter than a binary STL's 84-byte header")
+    raise fail(path, f"truncated or corrupt binary STL: its header says {count} triangles "
+                     f"({84 + 50 * count} bytes) but the file has {size} bytes")

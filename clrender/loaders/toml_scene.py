@@ -147,8 +147,9 @@ import numpy as np
 from .. import keyframes, structs
 from ..camera import Camera
 from ..scene import ALPHA_MODES, Material, Scene, SceneError, SceneObject, Sun
-from .common import (concat_vertex_attributes, fail, shift_textures, transform_normals, transform_points,
-                     transform_tangents)
+from . import budget, confine
+from .common import (charge_scene_arrays, concat_vertex_attributes, fail, shift_textures, transform_normals, transform_points,
+                     transform_tangents, parse_nested)
 from .lights import (AUTO_RADIUS_KEY, DIRECTIONAL_KEY, auto_radius, refresh_auto_radii, scene_diagonal,
                      sun_from_directional, transform_lights, warn_directional)
 
@@ -410,7 +411,7 @@ def _environment(path, data):
     if not isinstance(background, bool):
         raise fail(path, f"environment.background must be true or false, got {background!r}")
     if source.strip().lower() != STUDIO:
-        source = path.parent / source
+        source = confine.reference(path, source, "environment.source")
     try:
         return load_environment(source, intensity, rotation, background)
     except SceneError as exc:
@@ -450,6 +451,9 @@ def _add_lights(path, scene: Scene, lights: list[dict]) -> None:
         scene.settings[DIRECTIONAL_KEY] = directional
 
 
+RANDOM_LIGHT_BYTES = 2 * structs.light_dtype.itemsize + 7 * 8
+
+
 def _random_lights(path, data) -> dict:
     """[lights] -> keyword arguments for Scene.add_random_lights (None when there is no `random`)."""
     data = _table(path, "[lights]", data)
@@ -468,6 +472,9 @@ def _random_lights(path, data) -> dict:
         if isinstance(value, bool) or not isinstance(value, int) or value < 0:
             raise fail(path, f"{where}.{key} must be an integer >= 0, got {value!r}")
         out[key] = value
+    # checked here, before any mesh file loads: each light is a light_dtype record plus the
+    # generator's float64 draws and the concatenated copy (Scene.add_random_lights)
+    budget.current().charge(out["count"] * RANDOM_LIGHT_BYTES, path, f"{where}.count ({out['count']} lights)")
     radius = rnd.get("radius", [0.5, 2.0])
     if isinstance(radius, list):
         radius = _vector(path, f"{where}.radius", radius, 2)
@@ -563,6 +570,11 @@ def _concatenate(parts: list[tuple[str, Scene]], source: str, extras: Optional[l
     objects, mesh_object = [], []                 # one object per [[mesh]] entry
     lights, auto, directional = [], [], []
     v_off = l_off = 0
+    scenes = [s for _, s in parts]
+    charge_scene_arrays(sum(len(s.positions) for s in scenes), sum(len(s.triangles) for s in scenes),
+                        32 + 16 * any(s.colors is not None for s in scenes)
+                        + 16 * any(s.tangents is not None for s in scenes)
+                        + 8 * max((len(s.extra_uvs) for s in scenes if s.extra_uvs is not None), default=0), source)
     for label, s in parts:
         if s.deformation is not None or s.animation is not None:
             warnings.warn(f"{source}: mesh {label!r}: its animations, skins and morph targets are not carried into a "
@@ -609,12 +621,17 @@ def _concatenate(parts: list[tuple[str, Scene]], source: str, extras: Optional[l
                  **concat_vertex_attributes([s for _, s in parts]))
 
 
+TOML_PARSE_FACTOR = 12
+
+
 def load_toml(path) -> Scene:
     from . import load_scene
 
     path = Path(path)
     try:
-        data = tomllib.loads(path.read_bytes().decode("utf-8"))
+        # the text, and the tables tomllib makes of it (about ten times the text)
+        budget.current().charge(path.stat().st_size * TOML_PARSE_FACTOR, path, "the file itself (parsed)")
+        data = parse_nested(path, tomllib.loads, path.read_bytes().decode("utf-8"), "the TOML")
     except UnicodeDecodeError as exc:
         raise fail(path, f"not UTF-8 text ({exc.reason} at byte {exc.start})") from None
     except tomllib.TOMLDecodeError as exc:
@@ -650,7 +667,7 @@ def load_toml(path) -> Scene:
         rel = entry.get("path")
         if not isinstance(rel, str) or not rel:
             raise fail(path, f"{where} needs a 'path' string")
-        file = (path.parent / rel)
+        file = confine.reference(path, rel, f"{where}.path")
         if file.suffix.lower() == ".toml":
             raise fail(path, f"{where}.path {rel!r}: a TOML scene cannot include another TOML scene")
         if not file.is_file():

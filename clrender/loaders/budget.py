@@ -1,0 +1,149 @@
+"""The memory budget of one load: every count read from a file is turned into bytes and checked
+here BEFORE the array it implies is made.
+
+A file is small, the arrays its counts imply need not be: a 1 KB glTF whose accessor has no
+bufferView (the spec fills it with zeros) and a count of 402,653,184 asks for gigabytes, a TOML
+`[lights] random` count of 3·10^8 for 60 GB. Each such request is checked against
+
+* the budget: `CLRENDER_MAX_MEMORY` (bytes, or a number with K, M, G or T: binary multiples,
+  "8G", "512M", "1.5T"; or a percentage of the machine's physical memory, "25%"), else half of
+  the machine's physical memory;
+* the running total of the load (`Budget.used`): what the load already holds (accessor data,
+  decoded images, the scene's arrays) plus the request.
+
+Over it: one `BudgetError` (a SceneError) naming the file, the field and the bytes, e.g.
+`a.gltf: accessors[0].count (402653184 x VEC3 of FLOAT) would take 14.4 GiB, over the memory
+budget of 11.5 GiB (CLRENDER_MAX_MEMORY)`. The estimates are of what the loader really makes of
+a count (an accessor's data and the float64 copy the loader works in; an image's decoded RGBA and
+Pillow's own buffer), not only the raw bytes, so a request that passes fits in memory.
+
+`current()` is the active load's Budget (clrender.loaders.context; made on first use and shared by
+a TOML scene's mesh files and the image-decoding threads). Outside a load, each call gets a fresh
+budget: single requests are still checked.
+"""
+from __future__ import annotations
+
+import os
+import re
+import threading
+from typing import Optional
+
+from ..scene import SceneError
+
+ENV = "CLRENDER_MAX_MEMORY"
+DEFAULT_FRACTION = 0.5               # of the physical memory, without CLRENDER_MAX_MEMORY
+FALLBACK_MEMORY = 8 << 30            # when the physical memory cannot be read
+_UNITS = {"": 1, "K": 1 << 10, "M": 1 << 20, "G": 1 << 30, "T": 1 << 40}
+_SIZE = re.compile(r"^\s*(\d+(?:\.\d*)?|\.\d+)\s*([KMGT]?)(?:I?B)?\s*$", re.I)
+_PERCENT = re.compile(r"^\s*(\d+(?:\.\d*)?|\.\d+)\s*%\s*$")
+
+__all__ = ["Budget", "BudgetError", "ENV", "current", "memory_limit", "parse_size", "physical_memory", "human"]
+
+
+class BudgetError(SceneError):
+    """A count read from a file would take more memory than the budget allows."""
+
+
+def physical_memory() -> int:
+    """The machine's physical memory in bytes (FALLBACK_MEMORY when unknown)."""
+    try:
+        pages, size = os.sysconf("SC_PHYS_PAGES"), os.sysconf("SC_PAGE_SIZE")
+        if pages > 0 and size > 0:
+            return int(pages) * int(size)
+    except (ValueError, OSError, AttributeError):
+        pass
+    return FALLBACK_MEMORY
+
+
+def parse_size(text: str, what: str = ENV) -> int:
+    """'8G' -> 8 GiB, '512M', '1.5T', '1000000', '2GiB', '25%' (of the physical memory) -> bytes;
+    ValueError naming `what` for anything else (zero included: a budget of nothing loads nothing)."""
+    raw = str(text)
+    m = _PERCENT.match(raw)
+    if m:
+        value = float(m.group(1)) / 100.0 * physical_memory()
+    else:
+        m = _SIZE.match(raw)
+        if m is None:
+            raise ValueError(f"{what}={raw!r}: not a size (expected bytes, or a number with K, M, G or T, "
+                             f"e.g. 8G, or a percentage of the physical memory, e.g. 25%)")
+        value = float(m.group(1)) * _UNITS[m.group(2).upper()]
+    if not value >= 1:
+        raise ValueError(f"{what}={raw!r}: the memory budget must be at least 1 byte")
+    return int(value)
+
+
+def memory_limit() -> int:
+    """The budget in bytes: $CLRENDER_MAX_MEMORY, else DEFAULT_FRACTION of the physical memory."""
+    text = os.environ.get(ENV, "").strip()
+    if text:
+        return parse_size(text)
+    return int(physical_memory() * DEFAULT_FRACTION)
+
+
+def human(n: float) -> str:
+    """12884901888 -> '12 GiB', 1536 -> '1.5 KiB'."""
+    n = float(n)
+    for unit in ("bytes", "KiB", "MiB", "GiB", "TiB", "PiB"):
+        if abs(n) < 1024 or unit == "PiB":
+            return f"{int(n)} bytes" if unit == "bytes" else f"{n:.3g} {unit}"
+        n /= 1024.0
+    return f"{n:.3g} EiB"
+
+
+class Budget:
+    """Bytes one load may hold. Thread-safe: images decode on a thread pool."""
+
+    def __init__(self, limit: Optional[int] = None):
+        self.limit = memory_limit() if limit is None else int(limit)
+        self.used = 0
+        self._lock = threading.Lock()
+
+    def _refuse(self, where, what: str, nbytes: int, held: int) -> BudgetError:
+        size = f"{human(nbytes)} ({nbytes:,} bytes)"
+        if held:
+            return BudgetError(f"{where}: {what} would take {size}, which with the {human(held)} this load already "
+                               f"holds is over the memory budget of {human(self.limit)} ({ENV})")
+        return BudgetError(f"{where}: {what} would take {size}, over the memory budget of {human(self.limit)} "
+                           f"({ENV})")
+
+    def check(self, nbytes, where, what: str) -> None:
+        """BudgetError when `nbytes` alone would not fit the budget (nothing is charged)."""
+        nbytes = int(nbytes)
+        if nbytes > self.limit:
+            raise self._refuse(where, what, nbytes, 0)
+
+    def charge(self, nbytes, where, what: str, peak=None) -> int:
+        """Reserve `nbytes` for the rest of the load, after checking that `peak` (default `nbytes`:
+        what the allocation needs while it is made, e.g. a decoder's own buffer) fits beside what
+        the load holds. BudgetError naming `where` and `what` when it does not. Returns nbytes."""
+        nbytes = int(nbytes)
+        need = max(nbytes, int(peak)) if peak is not None else nbytes
+        with self._lock:
+            if need > self.limit:
+                raise self._refuse(where, what, need, 0)
+            if self.used + need > self.limit:
+                raise self._refuse(where, what, need, self.used)
+            self.used += nbytes
+        return nbytes
+
+    def release(self, nbytes) -> None:
+        """Give back bytes charged for something the load has dropped."""
+        with self._lock:
+            self.used = max(0, self.used - int(nbytes))
+
+
+def current() -> Budget:
+    """The active load's Budget, made on first use (a fresh one outside a load)."""
+    from .context import current as current_context
+    ctx = current_context()
+    budget = ctx.budget
+    if budget is None:
+        with _MAKE_LOCK:
+            budget = ctx.budget
+            if budget is None:
+                budget = ctx.budget = Budget()
+    return budget
+
+
+_MAKE_LOCK = threading.Lock()
