@@ -160,6 +160,7 @@ def main(argv=None) -> int:
     args = ap.parse_args(argv)
     from clrender import Renderer, load_scene
     from clrender.batch import render_frames
+    from clrender.timestamps import elapsed_ms
 
     width, height = (int(v) for v in args.size.split("x"))
     with tempfile.TemporaryDirectory() as tmp:
@@ -190,7 +191,7 @@ def main(argv=None) -> int:
                 _, start, end = r.pipeline._pose_timing
                 r.pipeline._pose_timing = None
                 if k >= args.warmup:
-                    dev.append((end.profile.end - start.profile.start) * 1e-6)
+                    dev.append(elapsed_ms(start, end))
                     host.append((h1 - h0) * 1e3)
                     sent.append(r.pipeline.pose_pass.bytes_per_frame)
             return dev, host, sent

@@ -4,6 +4,8 @@
         probe/<key>.json      the device probe's answers (clrender/device_probe.py)
         programs/<key>.bin    program binaries of drivers other than PoCL (clrender/device.py)
         pocl/                 PoCL's own kernel cache, when POCL_CACHE_DIR was not set (configure_pocl_cache)
+        icd/<hash>/           ICD files registering pip's OpenCL implementations (clrender/icd.py):
+                              a few bytes, neither counted nor pruned (a running process reads them)
 
 Every entry clrender writes carries a header (magic, payload length, sha256 of the payload): a
 truncated or corrupted file is detected on read, deleted and treated as a miss, so a damaged entry

@@ -5,6 +5,14 @@ and passes never guess at GPU-like limits.
 """
 from __future__ import annotations
 
+import ctypes
+import os
+import re
+import sys
+from functools import lru_cache
+from pathlib import Path
+from typing import Optional
+
 import pyopencl as cl
 
 SIMULATOR_NAMES = ("oclgrind",)
@@ -21,6 +29,111 @@ def is_gpu(dev: cl.Device) -> bool:
 def is_simulator(dev: cl.Device) -> bool:
     text = f"{dev.platform.name} {dev.name} {dev.vendor}".lower()
     return any(name in text for name in SIMULATOR_NAMES)
+
+
+# Which OpenCL implementation a device belongs to: a short stable key (`--device KEY` picks its
+# devices), its version, and where its library came from. Device names do not say it: PoCL names
+# its CPU device after the CPU ("pthread-Intel(R) Xeon(R) ..."), like Intel's own runtime does.
+
+def implementation_key(platform_name: str) -> str:
+    """"pocl", "intel" (Intel's CPU runtime, platform "Intel(R) OpenCL"), "intel-gpu" (Intel's
+    GPU runtime: "Intel(R) OpenCL Graphics"/"HD Graphics"), "oclgrind", "nvidia", "amd", else the
+    platform name's first word, lowercased, without punctuation."""
+    text = platform_name.strip().lower()
+    if "portable computing language" in text or "pocl" in text:
+        return "pocl"
+    if "oclgrind" in text:
+        return "oclgrind"
+    if text.startswith("intel"):
+        return "intel-gpu" if "graphics" in text else "intel"
+    if "nvidia" in text:
+        return "nvidia"
+    if text.startswith("amd") or "advanced micro devices" in text:
+        return "amd"
+    words = re.sub(r"[^a-z0-9_ -]", "", text).split()
+    return words[0] if words else "unknown"
+
+
+def implementation(dev: cl.Device) -> str:
+    return implementation_key(dev.platform.name)
+
+
+def implementation_version(dev: cl.Device, key: Optional[str] = None) -> str:
+    """PoCL: its release from the platform version ("3.0-rc2", "3.1+debian"); others: the driver
+    version, less a leading implementation name ("Oclgrind 21.10" -> "21.10")."""
+    key = key or implementation(dev)
+    if key == "pocl":
+        m = re.search(r"\bpocl\s+(\S+)", dev.platform.version, re.I)
+        if m:
+            return m.group(1)
+    words = str(dev.driver_version).split()
+    if len(words) == 2 and words[0].lower() == key:
+        return words[1]
+    return " ".join(words) or "?"
+
+
+class _DlInfo(ctypes.Structure):
+    _fields_ = [("dli_fname", ctypes.c_char_p), ("dli_fbase", ctypes.c_void_p),
+                ("dli_sname", ctypes.c_char_p), ("dli_saddr", ctypes.c_void_p)]
+
+
+def driver_library(dev: cl.Device) -> Optional[str]:
+    """The file of the library that implements `dev`'s platform (None where unknowable). Under an
+    ICD loader (Linux) every OpenCL object starts with a pointer to its driver's dispatch table,
+    which lies in the driver library's data: dladdr() names the file mapped there. This asks the
+    running process, so it is right whichever ICD file, path or copy the loader went through."""
+    if not sys.platform.startswith("linux"):
+        return None
+    return _library_at(int(dev.platform.int_ptr))
+
+
+@lru_cache(maxsize=None)
+def _library_at(platform_ptr: int) -> Optional[str]:
+    try:
+        libc = ctypes.CDLL(None)
+        dladdr = libc.dladdr
+        dladdr.argtypes, dladdr.restype = [ctypes.c_void_p, ctypes.POINTER(_DlInfo)], ctypes.c_int
+        dispatch = ctypes.c_void_p.from_address(platform_ptr).value
+        info = _DlInfo()
+        if dispatch and dladdr(dispatch, ctypes.byref(info)) and info.dli_fname:
+            return os.path.realpath(os.fsdecode(info.dli_fname))
+    except (AttributeError, OSError, ValueError):
+        pass
+    return None
+
+
+def driver_origin(dev: cl.Device) -> Optional[str]:
+    return library_origin(driver_library(dev))
+
+
+@lru_cache(maxsize=None)
+def library_origin(path: Optional[str]) -> Optional[str]:
+    """Where a driver library came from: "pip" (a Python package of this environment installed it:
+    it lies in a site-packages folder, like the PoCL bundled in pyopencl's wheel, or it is the file
+    a known pip distribution's RECORD lists, like opencl-rt's <prefix>/lib/libintelocl.so),
+    "conda" (inside a conda environment), else "system" (a distribution's package, a vendor's
+    installer). None when the library is unknown. Version strings cannot tell: pip's and Debian's
+    PoCL both say "RELOC" and "DISTRO"."""
+    if path is None:
+        return None
+    real = Path(os.path.realpath(path))
+    parts = real.parts
+    if "site-packages" in parts or ("dist-packages" in parts and not str(real).startswith("/usr/lib/")):
+        return "pip"                        # /usr/lib/python3/dist-packages: Debian's own packages
+    from . import icd
+    if any(os.path.realpath(p.library) == str(real) for p in icd.pip_implementations()):
+        return "pip"
+    for prefix in {sys.prefix, sys.base_prefix, os.environ.get("CONDA_PREFIX") or sys.prefix}:
+        if (Path(prefix) / "conda-meta").is_dir() and real.is_relative_to(os.path.realpath(prefix)):
+            return "conda"
+    return "system"
+
+
+def vector_widths(dev: cl.Device) -> dict:
+    """The driver's preferred and native float vector widths, and the pixels per work-item
+    clrender's per-pixel kernels use there (pixel_vector_width)."""
+    return {"preferred_float": int(dev.preferred_vector_width_float),
+            "native_float": int(dev.native_vector_width_float), "pixel": pixel_vector_width(dev)}
 
 
 def fill_buffer_marks_initialized(dev: cl.Device) -> bool:
@@ -46,6 +159,26 @@ def compiler_error(dev: cl.Device):
             lines = [ln.strip() for ln in str(exc).splitlines() if "error" in ln.lower()]
             _compiles[key] = (lines[-1] if lines else str(exc).splitlines()[0])[:200]
     return _compiles[key]
+
+
+_marker_times: dict = {}
+
+
+def markers_carry_time(dev: cl.Device) -> bool:
+    """Whether marker events on this device carry profiling timestamps. Intel's CPU runtime gives
+    markers start = end = 0 (its kernel events have real ones): pass times there are measured
+    between kernel launches instead (clrender/timestamps.py). Measured once per device: a marker
+    on a profiling queue of its own, waited (a fraction of a ms once the driver is loaded)."""
+    key = dev.int_ptr
+    if key not in _marker_times:
+        try:
+            queue = cl.CommandQueue(cl.Context([dev]), properties=cl.command_queue_properties.PROFILING_ENABLE)
+            marker = cl.enqueue_marker(queue)
+            marker.wait()
+            _marker_times[key] = 0 < marker.profile.start <= marker.profile.end
+        except cl.Error:            # e.g. PROFILING_INFO_NOT_AVAILABLE for markers
+            _marker_times[key] = False
+    return _marker_times[key]
 
 
 def max_work_group_size(dev: cl.Device) -> int:
@@ -101,13 +234,60 @@ def pixel_vector_width(dev: cl.Device) -> int:
     elif is_simulator(dev):
         width = 1          # Oclgrind reports every device type; it runs the GPU path (a pixel per work-item)
     elif is_cpu(dev):
-        width = 16 if int(dev.preferred_vector_width_float) >= 16 else 8
+        width = 16 if int(dev.preferred_vector_width_float) >= 16 and compiler_has_512bit_vectors(dev) else 8
     else:
         width = 1
     if width not in (1, 4, 8, 16):
         raise ValueError(f"pixel vector width must be 1, 4, 8 or 16, got {width}")
     return width
 
+
+
+# Does PoCL's compiler target have AVX-512 (its frontend defines __AVX512F__ then)? PoCL sizes its
+# preferred vector width from the CPU's features but compiles for LLVM's name of the CPU, which an
+# older LLVM may not know as an AVX-512 one: LLVM 14 (pip's PoCL 3.0, which has no setting for its
+# target CPU) calls every AMD family-19h CPU "znver3", so on Zen 4 it prefers 16 floats for an AVX2
+# target, and clrender's 16-wide pixel runs sent its InstCombine into a loop ending in SIGSEGV after
+# minutes (gbuffer_resolve; issue 35 item 6, tests/test_pocl_avx512.py). Asked with a one-kernel
+# build whose kernel name says the answer; kept in clrender's cache per driver and CPU (a build is
+# ~0.1 s even from PoCL's cache), so a warm start does not pay it.
+_SIMD_PROBE = """
+#if defined(__AVX512F__) || !defined(__x86_64__)
+kernel void wide_native(void) {}
+#else
+kernel void wide_split(void) {}
+#endif
+"""
+_wide: dict = {}
+
+
+def compiler_has_512bit_vectors(dev: cl.Device) -> bool:
+    """False where PoCL's compiler targets x86-64 without AVX-512 (16-wide vectors split in two);
+    True elsewhere, and for other implementations (their compilers pick their own code paths)."""
+    if implementation(dev) != "pocl" or not isinstance(dev, cl.Device):   # (tests' stand-ins build nothing)
+        return True
+    key = dev.int_ptr
+    if key in _wide:
+        return _wide[key]
+    import hashlib
+    from . import cache
+    from .device_probe import _cpu_identity
+    h = hashlib.sha256(_SIMD_PROBE.encode())
+    for part in (dev.platform.name, dev.platform.version, dev.name, dev.driver_version, _cpu_identity()):
+        h.update(part.encode() + b"\0")
+    name = f"probe/simd-{h.hexdigest()[:32]}.json"
+    record = cache.read_json(name)
+    if isinstance(record, dict) and isinstance(record.get("wide_native"), bool):
+        _wide[key] = record["wide_native"]
+        return _wide[key]
+    try:
+        names = cl.Program(cl.Context([dev]), _SIMD_PROBE).build().kernel_names
+        _wide[key] = "wide_split" not in names
+    except cl.Error:
+        _wide[key] = True           # no compiler: compiler_error() and the device probe say so
+        return True
+    cache.write_json(name, {"device": f"{dev.platform.version} {dev.name}", "wide_native": _wide[key]})
+    return _wide[key]
 
 def shadow_tile_size(dev: cl.Device, config) -> int:
     """Raster tile of the shadow maps: config.shadow_tile_size, else 32 on CPUs (a work-group of

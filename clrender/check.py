@@ -108,6 +108,27 @@ class CheckReport:
         lines.append("all AOVs agree" if self.ok else "MISMATCH: see the rows above")
         return "\n".join(lines)
 
+    def summary(self) -> str:
+        """One row per AOV, one column per compared device: "=" where every case is bit-identical,
+        else the largest difference over the cases (and "!" past the tolerance). The table in
+        docs/devices.md is this one."""
+        compared = [d for d in self.devices if d != self.reference]
+        worst: dict = {}
+        for r in self.rows:
+            max_abs, bad = worst.get((r.aov, r.device), (0.0, False))
+            worst[r.aov, r.device] = (max(max_abs, r.max_abs), bad or not r.ok)
+        # "2:0 pocl 3.1+debian: pthread-..." -> "2:0 pocl 3.1+debian": the id and the implementation
+        labels = [d.split(" ", 1)[0] + " " + d.split(" ", 1)[-1].split(":")[0][:24] for d in compared]
+        width = max([12, *(len(x) for x in labels)])
+        lines = [f"against {self.reference}", f"{'aov':<18}" + "".join(f"{x:>{width + 2}}" for x in labels)]
+        for aov in dict.fromkeys(r.aov for r in self.rows):
+            cells = []
+            for d in compared:
+                max_abs, bad = worst.get((aov, d), (0.0, False))
+                cells.append(("=" if max_abs == 0 else f"{max_abs:.3g}") + (" !" if bad else ""))
+            lines.append(f"{aov:<18}" + "".join(f"{c:>{width + 2}}" for c in cells))
+        return "\n".join(lines)
+
     def to_dict(self) -> dict:
         return {"reference": self.reference, "devices": list(self.devices), "ok": self.ok,
                 "rows": [r.__dict__ for r in self.rows]}

@@ -460,18 +460,25 @@ def _format_stats(stats: dict) -> str:
 
 
 def cmd_devices(args) -> int:
+    from . import icd
     from .device import DeviceError, list_devices
     from .device_probe import default_device_info
     from .device_report import device_record, devices_table
 
+    if args.no_probe and args.require:
+        raise CLIError("--require needs the probe (whether a device runs clrender's kernels): drop --no-probe")
+    if icd.note:                                # logged at import, before CLRENDER_LOG took effect
+        icd.log.debug(icd.note)
+    for line in icd.icd_problems():             # the loader skips these silently: say so, keep going
+        print(f"{PROG}: {line}", file=sys.stderr)
     devices = list_devices()
     if not devices:
         raise CLIError("no OpenCL device found: install one, e.g. `pip install pocl-binary-distribution`")
-    try:
-        default_id = default_device_info().id
+    try:                                        # the default is the first device whose probe passes
+        default_id = None if args.no_probe else default_device_info().id
     except DeviceError:
         default_id = None
-    records = [device_record(d, default_id, _one_line) for d in devices]
+    records = [device_record(d, default_id, _one_line, probe=not args.no_probe) for d in devices]
     if args.json:
         print(json.dumps(records, indent=2))
     else:
@@ -493,6 +500,9 @@ def cmd_check(args) -> int:
     report = run_check(args.device, args.scene, args.width, args.height,
                        progress=None if args.quiet else (lambda m: print(f"rendering {m}", file=sys.stderr)))
     print(report.table())
+    if len(report.devices) > 1:
+        print("\nlargest difference per AOV over every case (=: bit-identical everywhere, !: past the tolerance)")
+        print(report.summary())
     if args.json:
         Path(args.json).write_text(json.dumps(report.to_dict(), indent=2))
     if len(report.devices) < args.min_devices:

@@ -111,8 +111,9 @@ def add_render_options(p) -> None:
     p.add_argument("--height", type=_positive_int, metavar="H",
                    help="image height (default: the scene's [render] height, else 720)")
     p.add_argument("--device", metavar="NAME",
-                   help="OpenCL device: a name substring or P:D (default: $CLRENDER_DEVICE, else a GPU, "
-                        "else PoCL); see `clrender devices`")
+                   help="OpenCL device: P:D, an implementation (intel, pocl, oclgrind, nvidia, ...), pip or "
+                        "system, or a name substring (default: $CLRENDER_DEVICE, else a GPU, else the best "
+                        "usable CPU runtime); see `clrender devices`")
     p.add_argument("--tile-size", type=int, metavar="N", help="raster tile size in pixels: 8, 16 or 32 (default 8)")
     p.add_argument("--light-tile-size", type=int, metavar="N", help="light-culling tile size: 8, 16 or 32 (default 32)")
     p.add_argument("--light-culling", choices=LIGHT_CULLING,
@@ -262,6 +263,9 @@ def build_parser() -> argparse.ArgumentParser:
     d.add_argument("--json", action="store_true", help="print JSON instead of a table")
     d.add_argument("--require", action="append", default=[], metavar="NAME",
                    help="fail unless a device matching NAME runs clrender's kernels (repeatable; CI)")
+    d.add_argument("--no-probe", action="store_true",
+                   help="list without building clrender's kernels on each device (KERNELS: not probed; "
+                        "no default mark, which needs the probe)")
 
     from . import cli_dataset, cli_setup
     cli_dataset.add_parser(sub)         # dataset

@@ -15,14 +15,16 @@ from __future__ import annotations
 
 import hashlib
 import os
+import platform
 import subprocess
 import sys
 import threading
 import warnings
+from functools import lru_cache
 from pathlib import Path
 from typing import Optional
 
-from . import cache, progress
+from . import cache, icd, progress
 from .device import (ENV_DEVICE, Device, DeviceError, DeviceInfo, kernels_dir, list_devices, match_devices,
                      preference_order)
 
@@ -31,10 +33,33 @@ ENV_IN_PROBE = "CLRENDER_PROBE_CHILD"       # set in the child: it is the probe
 _answers: dict = {}
 
 
+@lru_cache(maxsize=1)
+def _cpu_identity() -> str:
+    """This machine's CPU: its model name and a hash of its feature flags (/proc/cpuinfo, read
+    once). Part of the probe's cache key: a driver's verdict depends on the CPU (pip's PoCL fails on
+    AVX-512 only), and Intel's CPU device is called "Intel(R) Xeon(R) Processor" on every Xeon."""
+    model = flags = ""
+    try:
+        with open("/proc/cpuinfo", encoding="utf-8", errors="replace") as f:
+            for line in f:
+                key, _, value = line.partition(":")
+                key = key.strip()
+                if key == "model name" and not model:
+                    model = value.strip()
+                elif key in ("flags", "Features") and not flags:
+                    flags = " ".join(sorted(value.split()))
+                if model and flags:
+                    break
+    except OSError:
+        pass
+    model = model or platform.processor() or platform.machine()
+    return f"{model} [{hashlib.sha256(flags.encode()).hexdigest()[:12]}]"
+
+
 def _key(info: DeviceInfo) -> str:
     d = info.cl_device
     h = hashlib.sha256()
-    for part in (d.platform.name, d.platform.version, d.name, d.driver_version, d.version):
+    for part in (d.platform.name, d.platform.version, d.name, d.driver_version, d.version, _cpu_identity()):
         h.update(part.encode() + b"\0")
     for p in sorted(kernels_dir().rglob("*")):
         if p.suffix in (".cl", ".h"):
@@ -72,7 +97,7 @@ def _ask_child(info: DeviceInfo) -> Optional[str]:
     env = dict(os.environ, PYTHONPATH=os.pathsep.join(filter(None, [str(Path(__file__).resolve().parents[1]),
                                                                       os.environ.get("PYTHONPATH")])))
     env[ENV_IN_PROBE] = "1"
-    proc = subprocess.Popen([sys.executable, "-m", "clrender.probe_child", info.id, info.name], env=env,
+    proc = subprocess.Popen([sys.executable, "-m", "clrender.probe_child", info.id, info.name, info.platform], env=env,
                             stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
     timed_out = threading.Event()
 
@@ -127,7 +152,8 @@ def select_devices(spec: Optional[str] = None, simulators: bool = False) -> list
     returned unprobed (a Renderer on it probes it: open_device)."""
     devices = list_devices()
     if not devices:
-        raise DeviceError("no OpenCL device found: install one, e.g. `pip install pocl-binary-distribution`")
+        raise DeviceError(icd.explain("no OpenCL device found: install one, e.g. "
+                                      "`pip install pocl-binary-distribution`"))
     if spec is None or spec.strip().lower() == "all":
         chosen = devices if simulators else [d for d in devices if not d.is_simulator]
     else:
@@ -146,12 +172,14 @@ def select_devices(spec: Optional[str] = None, simulators: bool = False) -> list
 
 def default_device_info(spec: Optional[str | DeviceInfo] = None) -> DeviceInfo:
     """The device a Renderer uses: `spec` (a DeviceInfo, name or "P:D"), else $CLRENDER_DEVICE, else
-    the first of device.preference_order (a GPU, else the newest PoCL CPU, ...) whose probe passes.
-    Only that device is probed (the next one only if it fails). DeviceError, in one line, when the
-    named device cannot run clrender's kernels."""
+    the first of device.preference_order (a GPU, else the CPU implementations in their measured
+    order, ...) whose probe passes. Only that device is probed (the next one only if it fails, said in
+    one line naming both). DeviceError, in one line: a named device that fails its probe (no other
+    is used in its place), or no usable device (with what to install)."""
     if isinstance(spec, DeviceInfo):
-        candidates, named = [spec], True
+        candidates, named, from_env = [spec], True, False
     else:
+        from_env = spec is None and bool(os.environ.get(ENV_DEVICE))
         spec = spec if spec is not None else os.environ.get(ENV_DEVICE) or None
         named = spec is not None
         devices = list_devices()
@@ -159,16 +187,46 @@ def default_device_info(spec: Optional[str | DeviceInfo] = None) -> DeviceInfo:
         if not named:
             candidates = [d for d in candidates if not d.is_simulator] or candidates
     if not candidates:
-        raise DeviceError("no OpenCL device found: install one, e.g. `pip install pocl-binary-distribution`")
-    errors = []
+        raise DeviceError(icd.explain("no OpenCL device found: install one, e.g. "
+                                      "`pip install pocl-binary-distribution`"))
+    failed = []
     for d in candidates:
         error = probe_error(d)
         if error is None:
+            if failed:
+                _notice_fallback(failed, d)
             return d
-        errors.append(f"{d.label}: {error}")
-        if len(candidates) > 1:
-            _warn_unusable(d, error, "trying the next device")
-    raise DeviceError("no OpenCL device runs clrender's kernels (" + "; ".join(errors) + ")")
+        failed.append((d, error))
+    if named and len(candidates) == 1:
+        # a request, not a preference: another device behind the user's back would hide the failure
+        by = f" (${ENV_DEVICE}={spec})" if from_env else ""
+        d, error = failed[0]
+        raise DeviceError(f"the requested device{by} {d.description} failed clrender's probe ({error}); no other "
+                          f"device is used in its place: name another (`clrender devices` lists them)")
+    raise DeviceError("no OpenCL device runs clrender's kernels ("
+                      + "; ".join(f"{d.description}: {error}" for d, error in failed) + ")"
+                      + _what_to_install(devices if not isinstance(spec, DeviceInfo) else candidates))
+
+
+def _notice_fallback(failed: list, chosen: DeviceInfo) -> None:
+    """One line (a warning, and the "clrender" logger) naming the device(s) that failed their probe
+    and the one used instead; once per process for the same outcome."""
+    line = (", ".join(f"{d.description} failed clrender's probe ({error})" for d, error in failed)
+            + f"; using the next device, {chosen.description}, instead")
+    key = (tuple(d.id for d, _ in failed), chosen.id)
+    if key not in _warned:
+        _warned.add(key)
+        progress.log.info("%s", line)
+        warnings.warn(line, stacklevel=3)
+
+
+def _what_to_install(devices) -> str:
+    """"; install another: ..." for the CPU implementations clrender knows that are missing."""
+    from .device import CPU_IMPLEMENTATIONS, missing_hint
+    hints = [h for h in (missing_hint(key, devices) for key in CPU_IMPLEMENTATIONS) if h]
+    if hints:
+        return "; install another implementation: " + "; ".join(hints)
+    return "; `clrender devices` shows each device's probe"
 
 
 def worker_device_spec(explicit: Optional[str] = None) -> Optional[str]:

@@ -17,6 +17,7 @@ from . import progress
 from .device import lazy_kernels
 from .frame import Readback, SnapshotPool
 from .passes.base import zeros
+from .timestamps import elapsed_ms, stamp
 from .passes.encode import EncodePass
 from .passes.resolve import ResolvePass
 from .passes import (AbufferPass, BinningPass, CompositePass, FragmentsPass, GBufferPass, LightCullPass,
@@ -114,7 +115,7 @@ class Pipeline:
         self.snapshots = SnapshotPool(self.queue, min(device.cl_device.global_mem_size // 8, 1 << 30))
         self._pending = None
         self.pose_pass = None           # skins and morph targets: built for the first deformed scene
-        self._pose_timing = None        # its profiling markers for the next frame's stats
+        self._pose_timing = None        # its profiling timestamps for the next frame's stats
         self._totals = None           # the overflow totals gathered for one read
         self._launched: set = set()   # passes launched at least once (their kernels compiled)
         self._built: set = set()      # passes whose programs are all built
@@ -172,9 +173,9 @@ class Pipeline:
             from .passes.pose import PosePass
             self.pose_pass = PosePass(self.device, self.config)
         self.pose_pass.prepare_scene(res)
-        start = cl.enqueue_marker(self.queue)
+        start = stamp(self.device)
         self.pose_pass.run(res)
-        self._pose_timing = ("pose", start, cl.enqueue_marker(self.queue)) if self.pose_pass.ran else None
+        self._pose_timing = ("pose", start, stamp(self.device)) if self.pose_pass.ran else None
         for name in ("positions", "normals", "tangents"):
             upload.buffers[name] = res.buffers[name]
         if "prev_positions" in upload.buffers:
@@ -272,9 +273,13 @@ class Pipeline:
                         continue                        # no environment: the constant ambient, no kernel
                     if stage is not None:               # programs only known now (shadow-map stages)
                         self.device.build(k.spec for k in lazy_kernels(p))
-                    start = cl.enqueue_marker(self.queue)
+                    # Stamps right around the run (on Intel's runtime a stamp is a kernel launch:
+                    # clrender/timestamps.py): the host's work between passes (publish, the shadow
+                    # views' planning) is not device time, whereas one stamp shared by consecutive
+                    # passes would count the device's idle wait for it in the next pass
+                    start = stamp(self.device)
                     p.run(res)
-                    timings.append((p.name, start, cl.enqueue_marker(self.queue)))
+                    timings.append((p.name, start, stamp(self.device)))
                     if stage is not None and p not in self._launched and p.name != "shadow":
                         self._launched.add(p)
                         stage.advance(f"first launch: {p.name}")
@@ -292,10 +297,10 @@ class Pipeline:
             self._pose_timing = None
         readback = self._readback(res, width, height, transparent)
         clock.lap("readback_ms")
-        stats = {f"{name}_ms": (end.profile.end - start.profile.start) * 1e-6 for name, start, end in timings}
+        stats = {f"{name}_ms": elapsed_ms(start, end) for name, start, end in timings}
         stats["total_ms"] = sum(stats.values())
         if timings:       # first pass's start to last pass's end: the passes plus any gap between them
-            stats["span_ms"] = (timings[-1][2].profile.end - timings[0][1].profile.start) * 1e-6
+            stats["span_ms"] = elapsed_ms(timings[0][1], timings[-1][2])
         stats.update(self.passes[0].triangle_stats())
         stats["prims"] = int(self.passes[0].prim_total.get(queue=self.queue)[0])
         stats["tile_entries"] = int(self.passes[1].total.get(queue=self.queue)[0])

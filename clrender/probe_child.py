@@ -1,4 +1,4 @@
-"""The device probe's child process: `python -m clrender.probe_child P:D NAME`.
+"""The device probe's child process: `python -m clrender.probe_child P:D NAME [PLATFORM]`.
 
 Builds and launches what the default Renderer runs (one triangle lit by one point light, 8x8),
 reporting each program and first launch as "progress ..." lines, then prints "ok" or one line
@@ -11,7 +11,7 @@ import os
 import sys
 
 
-def main(device_id: str, name: str) -> int:
+def main(device_id: str, name: str, platform: str = "") -> int:
     import warnings
     warnings.simplefilter("ignore")
     import numpy as np
@@ -19,7 +19,13 @@ def main(device_id: str, name: str) -> int:
     from . import capabilities, progress
     from .device import list_devices
     progress.report_lines(sys.stdout)
-    info = next((d for d in list_devices() if d.id == device_id and d.name == name), None)
+    # The id first; else the same platform and device under another id (a parent that listed
+    # platforms before clrender registered pip's implementations numbers them differently)
+    devices = list_devices()
+    info = next((d for d in devices if d.id == device_id and d.name == name), None)
+    if info is None and platform:
+        same = [d for d in devices if d.name == name and d.platform == platform]
+        info = same[0] if len(same) == 1 else None
     if info is None:
         print(f"device {device_id} ({name}) not found")
         return 2
@@ -42,4 +48,4 @@ def main(device_id: str, name: str) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main(sys.argv[1], sys.argv[2]))
+    sys.exit(main(*sys.argv[1:4]))

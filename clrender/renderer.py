@@ -249,7 +249,8 @@ class RenderConfig:
 class Renderer:
     """Renders scenes at a fixed resolution on one OpenCL device.
 
-    device: None (CLRENDER_DEVICE, else a GPU, else the newest PoCL), a name substring, "P:D", or a
+    device: None (CLRENDER_DEVICE, else a GPU, else the best usable CPU runtime: device_probe),
+    "P:D", an implementation key ("intel", "pocl", ...), "pip"/"system", a name substring, or a
     DeviceInfo. Programs build at the first render that needs them (progress: clrender.progress).
     Options are RenderConfig fields (e.g. tile_size=8).
 

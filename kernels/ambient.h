@@ -60,7 +60,7 @@ static inline void view_vectors(global const float* camera, int width, int heigh
     const floatV xn = (convert_floatV(px) + 0.5f) * (2.0f / (float)width) - (1.0f + camera[3]);
     const floatV yn = (1.0f - camera[7]) - (convert_floatV(py) + 0.5f) * (2.0f / (float)height);
     const floatV dx = F.x + xn * Rs.x + yn * Us.x, dy = F.y + xn * Rs.y + yn * Us.y, dz = F.z + xn * Rs.z + yn * Us.z;
-    const floatV inv_d = rsqrt(dx * dx + dy * dy + dz * dz);
+    const floatV inv_d = RSQRT(dx * dx + dy * dy + dz * dz);
     *vx = -dx * inv_d; *vy = -dy * inv_d; *vz = -dz * inv_d;
 #endif
 }

@@ -84,7 +84,7 @@ static FragmentsV shade_fragments(const Forward* f, intV pi, floatV z, intV acti
     const floatV dx = F.x + xn * Rs.x + yn * Us.x, dy = F.y + xn * Rs.y + yn * Us.y, dz = F.z + xn * Rs.z + yn * Us.z;
     const floatV wx = eye.x + z * dx, wy = eye.y + z * dy, wz = eye.z + z * dz;
 #endif
-    const floatV inv_d = rsqrt(dx * dx + dy * dy + dz * dz);
+    const floatV inv_d = RSQRT(dx * dx + dy * dy + dz * dz);
 
 #if BRUTE_FORCE
     const int first = 0, count = f->n_lights;

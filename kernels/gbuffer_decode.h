@@ -26,7 +26,7 @@ static inline LitPointV decode_lit_point(uintV w_nrm, uintV w_depth, intV fg, fl
     if (ANY(gltf)) s.spec_p = select(s.spec_p, byte * (1.0f / 255.0f), gltf);
     floatV fx, fy, fz;
     unpack_oct12x2V(w_nrm >> GB_NORMAL_SHIFT, &fx, &fy, &fz);
-    const floatV inv_n = rsqrt(fx * fx + fy * fy + fz * fz);
+    const floatV inv_n = RSQRT(fx * fx + fy * fy + fz * fz);
     s.nx = fx * inv_n; s.ny = fy * inv_n; s.nz = fz * inv_n;
     return s;
 }

@@ -125,7 +125,7 @@ static inline ViewPointV view_point(global const float* camera, int width, int h
     ViewPointV v;
     floatV dx, dy, dz;
     pixel_positions(camera, width, height, px0, py, depth, &dx, &dy, &dz, &v.px, &v.py, &v.pz);
-    const floatV inv_d = rsqrt(dx * dx + dy * dy + dz * dz);
+    const floatV inv_d = RSQRT(dx * dx + dy * dy + dz * dz);
     v.vx = -dx * inv_d; v.vy = -dy * inv_d; v.vz = -dz * inv_d;
     return v;
 }
@@ -198,7 +198,7 @@ static inline intV light_reach(const Light* lt, floatV px, floatV py_, floatV pz
     const floatV d2 = light_vector(lt, px, py_, pz, &lx, &ly, &lz);
     intV reach = d2 < lt->radius * lt->radius;
     if (lt->type == LIGHT_SPOT && ANY(reach)) {
-        const floatV inv_l = rsqrt(fmax(d2, 1e-30f));
+        const floatV inv_l = RSQRT(fmax(d2, 1e-30f));
         reach &= spot_cos(lt, lx * inv_l, ly * inv_l, lz * inv_l) > lt->cos_outer;
     }
     return reach;
@@ -249,7 +249,7 @@ static inline void add_light(const LightEnv* env, const Light lt, intV fg, intV 
         if (lt.falloff == LIGHT_FALLOFF_INVERSE_SQUARE_UNBOUNDED) win = 1.0f;
         atten = select((floatV)0.0f, win * win / fmax(d2, 1e-8f), near_enough);
     }
-    floatV inv_l = rsqrt(fmax(d2, 1e-30f));
+    floatV inv_l = RSQRT(fmax(d2, 1e-30f));
     lx *= inv_l; ly *= inv_l; lz *= inv_l;
     if (lt.type == LIGHT_SPOT) {
         floatV cos_a = spot_cos(&lt, lx, ly, lz);
@@ -276,7 +276,7 @@ static inline void add_light(const LightEnv* env, const Light lt, intV fg, intV 
     /* Nothing to add where no lane the light reaches faces it: both terms are +0 there. */
     if (!ANY(near_enough & (ndotl > 0.0f))) return;
     floatV hx = lx + vx, hy = ly + vy, hz = lz + vz;
-    floatV inv_h = rsqrt(fmax(hx * hx + hy * hy + hz * hz, 1e-30f));
+    floatV inv_h = RSQRT(fmax(hx * hx + hy * hy + hz * hz, 1e-30f));
     floatV ndoth = fmax((nx * hx + ny * hy + nz * hz) * inv_h, 0.0f);
     floatV spec = select((floatV)0.0f, m->spec_i * spec_powV(ndoth, m->spec_p), ndotl > 0.0f);
     floatV diff = atten * fmax(ndotl, 0.0f);
@@ -379,7 +379,7 @@ static void accumulate_lights_counted(const LightEnv* env, int first, int count,
         }
 #endif
         floatV hx = lx + vx, hy = ly + vy, hz = lz + vz;
-        floatV inv_h = rsqrt(fmax(hx * hx + hy * hy + hz * hz, 1e-30f));
+        floatV inv_h = RSQRT(fmax(hx * hx + hy * hy + hz * hz, 1e-30f));
         floatV ndoth = fmax((nx * hx + ny * hy + nz * hz) * inv_h, 0.0f);
         floatV spec = select((floatV)0.0f, vis * m->spec_i * spec_powV(ndoth, m->spec_p), ndotl > 0.0f);
         floatV diff = vis * fmax(ndotl, 0.0f);

@@ -120,14 +120,14 @@ static void apply_normal_map(const SceneV* sc, const BaryV* b, intV mat, intV fl
     const floatV nt = dot3V(N, T);                   /* Gram-Schmidt: T orthogonal to N, unit */
     T.x -= N.x * nt; T.y -= N.y * nt; T.z -= N.z * nt;
     const floatV t2 = dot3V(T, T);
-    const floatV inv_t = rsqrt(fmax(t2, 1e-30f));
+    const floatV inv_t = RSQRT(fmax(t2, 1e-30f));
     T.x *= inv_t; T.y *= inv_t; T.z *= inv_t;
     const floatV sign = select((floatV)1.0f, (floatV)-1.0f, hand < 0.0f);
     const vec3V B = { (N.y * T.z - N.z * T.y) * sign, (N.z * T.x - N.x * T.z) * sign, (N.x * T.y - N.y * T.x) * sign };
     vec3V n = { tx * T.x + ty * B.x + tz * N.x, tx * T.y + ty * B.y + tz * N.y, tx * T.z + ty * B.z + tz * N.z };
     const floatV n2 = dot3V(n, n);
     const intV use = hit & (t2 > 1e-12f) & (n2 > 1e-12f);   /* a degenerate tangent or map texel: no map */
-    const floatV inv_n = rsqrt(fmax(n2, 1e-30f));
+    const floatV inv_n = RSQRT(fmax(n2, 1e-30f));
     sf->n.x = select(N.x, n.x * inv_n, use); sf->n.y = select(N.y, n.y * inv_n, use);
     sf->n.z = select(N.z, n.z * inv_n, use);
 }

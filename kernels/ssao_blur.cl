@@ -66,7 +66,10 @@ void ssao_blur(global const float* src, global const uint* gbuffer, int width, i
             floatV d_q = load_run_clipped(depth_plane, qx0, qy, valid, width, height, INFINITY);
             floatV a_q = load_run_clipped(src, qx0, qy, valid, width, height, 1.0f);
             floatV rel = (d_q - d_p) * inv_tol;
-            floatV w = (float)(SSAO_BLUR_RADIUS + 1 - abs(i)) * fmax(1.0f - rel * rel, 0.0f);
+            /* Not abs(i): Intel's CPU runtime 2021.2 (opencl-rt) optimizes abs() of this loop
+             * counter to 0 in the one-pixel (VEC 1) build, a flat instead of a tent. */
+            const int tent = SSAO_BLUR_RADIUS + 1 - (i < 0 ? -i : i);
+            floatV w = (float)tent * fmax(1.0f - rel * rel, 0.0f);
             w = select((floatV)0.0f, w, fg & isfinite(d_q));
             sum_w += w;
             sum_wa += w * a_q;

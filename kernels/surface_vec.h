@@ -155,7 +155,7 @@ static SurfaceV surface_at(const SceneV* sc, intV w, intV fg, intV px, intV py)
     floatV len2 = dot3V(n, n);
     intV zero = !(len2 > 0.0f);
     n.z = select(n.z, (floatV)1.0f, zero);
-    floatV inv_len = select(rsqrt(len2), (floatV)1.0f, zero);
+    floatV inv_len = select(RSQRT(len2), (floatV)1.0f, zero);
     n.x *= inv_len; n.y *= inv_len; n.z *= inv_len;
 
     sf.tri = tri; sf.flags = flags; sf.mat = mat; sf.i0 = bc.i0; sf.i1 = bc.i1; sf.i2 = bc.i2;

@@ -44,10 +44,12 @@ def test_compare_float_tolerances():
 
 
 def _compared_devices():
-    """Every real device; with fewer than two, a real one and Oclgrind (a second implementation,
+    """Two real devices (the default and the next: `clrender check --device all` in .ci/run compares
+    every implementation); with fewer than two, a real one and Oclgrind (a second implementation,
     slow: the callers keep their cases small); with fewer than two of those, skip (CI: fail)."""
+    from clrender.device import preference_order
     from clrender.device_probe import select_devices
-    devices = select_devices("all")
+    devices = preference_order(select_devices("all"))[:2]
     if len(devices) < 2:
         devices = sorted(select_devices("all", simulators=True), key=lambda d: d.is_simulator)[:2]
     if len(devices) < 2:

@@ -53,8 +53,12 @@ def test_a_render_builds_exactly_the_programs_of_the_passes_it_runs(device, fres
     built = {spec for spec, _ in dev.built[-len(Device._programs):]}
     ran = [p for p in r.pipeline.passes if f"{p.name}_ms" in frame.stats]
     expected = _pass_specs(r.pipeline, ran)
-    assert built == expected, (sorted(map(str, built ^ expected)))
-    assert len(Device._programs) == len(expected)
+    # Where markers carry no time (Intel's runtime) the pass-time stamp kernel is built too, once per
+    # device: by this test or an earlier one
+    stamp = clrender.timestamps.SPEC
+    assert stamp not in built or not clrender.capabilities.markers_carry_time(dev.cl_device)
+    assert built - {stamp} == expected, (sorted(map(str, (built - {stamp}) ^ expected)))
+    assert len(Device._programs) - int(stamp in built) == len(expected)
     # no BLEND triangle, no particles, no shadowed light: those passes built nothing
     skipped = [p for p in r.pipeline.passes if f"{p.name}_ms" not in frame.stats]
     assert {p.name for p in skipped} >= {"particles", "shadow"} and "fragments" in {p.name for p in skipped}

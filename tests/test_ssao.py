@@ -211,6 +211,22 @@ def test_blur_does_not_bleed_across_a_depth_discontinuity(device):
     np.testing.assert_allclose(run_blur(device, ao, depth), bilateral_blur(ao, depth), rtol=0, atol=2e-6)
 
 
+@pytest.mark.parametrize("vec", ["1", "4", "8", "16"])
+def test_blur_weights_match_reference_at_every_pixel_width(device, monkeypatch, vec):
+    """The tent-times-depth weights at each pixels-per-work-item build (CPUs use 8 or 16, GPUs 1):
+    Intel's CPU runtime 2021.2 once folded abs(i) of the tap loop to 0 in the VEC 1 build only,
+    a box filter instead of the tent (the SSAO differences between widths on that runtime)."""
+    monkeypatch.setenv("CLRENDER_VEC", vec)
+    rng = np.random.default_rng(17)
+    h, w = 19, 45                                    # partial runs and work-groups at every width
+    depth = (0.2 + 0.01 * rng.random((h, w))).astype(np.float32)      # one surface: every tap weighs
+    depth[:, 30:] += np.float32(0.006)               # a step within the depth tolerance: partial weights
+    depth[:2] = np.inf
+    depth[rng.random((h, w)) < 0.1] = np.inf         # background amid a row: diverging work-items
+    ao = rng.random((h, w)).astype(np.float32)
+    np.testing.assert_allclose(run_blur(device, ao, depth), bilateral_blur(ao, depth), rtol=0, atol=2e-6)
+
+
 def test_options_are_validated():
     for bad in (dict(ssao="yes"), dict(ssao_blur=1), dict(ssao_radius=0.0), dict(ssao_radius=float("nan")),
                 dict(ssao_radius="1"), dict(ssao_strength=-0.5), dict(ssao_strength=float("inf"))):

@@ -13,6 +13,7 @@ import pyopencl as cl
 import pyopencl.array as cla
 
 from .. import capabilities
+from ..timestamps import elapsed_ms, stamp
 
 
 @dataclass
@@ -83,7 +84,7 @@ class RenderPass:
         return []
 
     def timed(self, stage: str):
-        """Context manager: profiling markers around the work a stage of this pass enqueues;
+        """Context manager: profiling timestamps around the work a stage of this pass enqueues;
         `stage_stats()` sums them per stage ("<pass>_<stage>_ms") after the frame."""
         return _Timed(self, stage)
 
@@ -91,7 +92,7 @@ class RenderPass:
         out: dict = {}
         for stage, start, end in getattr(self, "_stage_events", ()):
             key = f"{self.name}_{stage}_ms"
-            out[key] = out.get(key, 0.0) + (end.profile.end - start.profile.start) * 1e-6
+            out[key] = out.get(key, 0.0) + elapsed_ms(start, end)
         return out
 
     def clear_stage_events(self) -> None:
@@ -106,11 +107,11 @@ class _Timed:
         self.owner, self.stage = owner, stage
 
     def __enter__(self):
-        self.start = cl.enqueue_marker(self.owner.queue)
+        self.start = stamp(self.owner.device, self.owner.queue)
 
     def __exit__(self, *exc):
         events = self.owner.__dict__.setdefault("_stage_events", [])
-        events.append((self.stage, self.start, cl.enqueue_marker(self.owner.queue)))
+        events.append((self.stage, self.start, stamp(self.owner.device, self.owner.queue)))
 
 
 def view_defines(ortho: bool) -> dict:
