@@ -67,10 +67,11 @@ def implementation_key(platform: str, platform_version: str, origin: Optional[st
     """"intel", "pocl-debian", "pocl-pip" (or "pocl-<origin>" for a PoCL from elsewhere, e.g.
     conda), None for what is not one of this benchmark's CPU implementations. By platform, not
     device name: PoCL's device names say "Intel(R) Xeon" too."""
-    name = platform.strip()
-    if name == "Intel(R) OpenCL":
+    from clrender.capabilities import implementation_key as key_of
+    key = key_of(platform)
+    if key == "intel":
         return "intel"
-    if "portable computing language" in name.lower() or "pocl" in name.lower():
+    if key == "pocl":
         if "debian" in platform_version.lower():
             return "pocl-debian"
         return "pocl-pip" if origin in (None, "pip") else f"pocl-{origin}"

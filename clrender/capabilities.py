@@ -6,7 +6,9 @@ and passes never guess at GPU-like limits.
 from __future__ import annotations
 
 import ctypes
+import hashlib
 import os
+import platform
 import re
 import sys
 from functools import lru_cache
@@ -102,10 +104,6 @@ def _library_at(platform_ptr: int) -> Optional[str]:
     return None
 
 
-def driver_origin(dev: cl.Device) -> Optional[str]:
-    return library_origin(driver_library(dev))
-
-
 @lru_cache(maxsize=None)
 def library_origin(path: Optional[str]) -> Optional[str]:
     """Where a driver library came from: "pip" (a Python package of this environment installed it:
@@ -134,6 +132,36 @@ def vector_widths(dev: cl.Device) -> dict:
     clrender's per-pixel kernels use there (pixel_vector_width)."""
     return {"preferred_float": int(dev.preferred_vector_width_float),
             "native_float": int(dev.native_vector_width_float), "pixel": pixel_vector_width(dev)}
+
+
+@lru_cache(maxsize=1)
+def cpu_identity() -> str:
+    """This machine's CPU: its model name and a hash of its feature flags (/proc/cpuinfo, read
+    once). Part of the probe's cache key: a driver's verdict depends on the CPU (pip's PoCL fails on
+    AVX-512 only), and Intel's CPU device is called "Intel(R) Xeon(R) Processor" on every Xeon."""
+    model = flags = ""
+    try:
+        with open("/proc/cpuinfo", encoding="utf-8", errors="replace") as f:
+            for line in f:
+                key, _, value = line.partition(":")
+                key = key.strip()
+                if key == "model name" and not model:
+                    model = value.strip()
+                elif key in ("flags", "Features") and not flags:
+                    flags = " ".join(sorted(value.split()))
+                if model and flags:
+                    break
+    except OSError:
+        pass
+    model = model or platform.processor() or platform.machine()
+    return f"{model} [{hashlib.sha256(flags.encode()).hexdigest()[:12]}]"
+
+
+def driver_identity(dev: cl.Device) -> tuple:
+    """What a verdict about a driver on this machine depends on: platform, its version, device,
+    driver and device versions, and the CPU (cpu_identity). The device probe's and the SIMD probe's
+    cache keys (with what each asks)."""
+    return (dev.platform.name, dev.platform.version, dev.name, dev.driver_version, dev.version, cpu_identity())
 
 
 def fill_buffer_marks_initialized(dev: cl.Device) -> bool:
@@ -242,7 +270,6 @@ def pixel_vector_width(dev: cl.Device) -> int:
     return width
 
 
-
 # Does PoCL's compiler target have AVX-512 (its frontend defines __AVX512F__ then)? PoCL sizes its
 # preferred vector width from the CPU's features but compiles for LLVM's name of the CPU, which an
 # older LLVM may not know as an AVX-512 one: LLVM 14 (pip's PoCL 3.0, which has no setting for its
@@ -269,11 +296,9 @@ def compiler_has_512bit_vectors(dev: cl.Device) -> bool:
     key = dev.int_ptr
     if key in _wide:
         return _wide[key]
-    import hashlib
     from . import cache
-    from .device_probe import _cpu_identity
     h = hashlib.sha256(_SIMD_PROBE.encode())
-    for part in (dev.platform.name, dev.platform.version, dev.name, dev.driver_version, _cpu_identity()):
+    for part in driver_identity(dev):
         h.update(part.encode() + b"\0")
     name = f"probe/simd-{h.hexdigest()[:32]}.json"
     record = cache.read_json(name)
@@ -288,6 +313,7 @@ def compiler_has_512bit_vectors(dev: cl.Device) -> bool:
         return True
     cache.write_json(name, {"device": f"{dev.platform.version} {dev.name}", "wide_native": _wide[key]})
     return _wide[key]
+
 
 def shadow_tile_size(dev: cl.Device, config) -> int:
     """Raster tile of the shadow maps: config.shadow_tile_size, else 32 on CPUs (a work-group of

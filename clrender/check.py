@@ -290,7 +290,7 @@ def run_check(devices="all", scenes: Sequence[str | Path] = (), width: int = 96,
               height: int = 64, progress=None, only: Sequence[str] = ()) -> CheckReport:
     """Render the cases (or `scenes`) on every selected device -- "all", a name (select_devices), or
     a list of DeviceInfo -- and compare with the first device; `only`: just the cases so named."""
-    from .device import DeviceError
+    from .device import no_device_error
     from .device_probe import select_devices
     from .loaders import load_scene
     from .renderer import Renderer
@@ -302,7 +302,7 @@ def run_check(devices="all", scenes: Sequence[str | Path] = (), width: int = 96,
         infos = select_devices(devices or "all", simulators=True)
     infos = sorted(infos, key=lambda d: d.is_simulator)   # a real device is the reference
     if not infos:
-        raise DeviceError("no OpenCL device found")
+        raise no_device_error()
     if scenes:
         cases = []
         for s in scenes:

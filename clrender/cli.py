@@ -461,7 +461,7 @@ def _format_stats(stats: dict) -> str:
 
 def cmd_devices(args) -> int:
     from . import icd
-    from .device import DeviceError, list_devices
+    from .device import DeviceError, list_devices, no_device_error
     from .device_probe import default_device_info
     from .device_report import device_record, devices_table
 
@@ -473,7 +473,7 @@ def cmd_devices(args) -> int:
         print(f"{PROG}: {line}", file=sys.stderr)
     devices = list_devices()
     if not devices:
-        raise CLIError("no OpenCL device found: install one, e.g. `pip install pocl-binary-distribution`")
+        raise CLIError(str(no_device_error()))
     try:                                        # the default is the first device whose probe passes
         default_id = None if args.no_probe else default_device_info().id
     except DeviceError:

@@ -183,12 +183,18 @@ def _warn_platform(platform, exc: Exception) -> None:
         warnings.warn(f"OpenCL platform {name!r} is skipped: listing its devices failed ({exc})", stacklevel=3)
 
 
+def no_device_error() -> DeviceError:
+    """The one line for an OpenCL loader that lists no device: what installs one, and any ICD file
+    whose library does not load (the loader skips those silently)."""
+    return DeviceError(icd.explain("no OpenCL device found: install one, e.g. `pip install -e \".[pocl,intel]\"` "
+                                   "(pip's PoCL and Intel's CPU runtime)"))
+
+
 def match_devices(spec: str, devices: Optional[Sequence[DeviceInfo]] = None) -> list[DeviceInfo]:
     """The devices a name substring or "P:D" picks (no probing); DeviceError when none."""
     devices = list_devices() if devices is None else list(devices)
     if not devices:
-        raise DeviceError(icd.explain("no OpenCL device found: install one, e.g. "
-                                      "`pip install pocl-binary-distribution`"))
+        raise no_device_error()
     keys = {d.implementation for d in devices}
     chosen = [d for d in devices if d.matches(spec, keys)]
     if not chosen:

@@ -15,51 +15,25 @@ from __future__ import annotations
 
 import hashlib
 import os
-import platform
 import subprocess
 import sys
 import threading
 import warnings
-from functools import lru_cache
 from pathlib import Path
 from typing import Optional
 
-from . import cache, icd, progress
+from . import cache, capabilities, progress
 from .device import (ENV_DEVICE, Device, DeviceError, DeviceInfo, kernels_dir, list_devices, match_devices,
-                     preference_order)
+                     no_device_error, preference_order)
 
 PROBE_TIMEOUT_S = 900
 ENV_IN_PROBE = "CLRENDER_PROBE_CHILD"       # set in the child: it is the probe
 _answers: dict = {}
 
 
-@lru_cache(maxsize=1)
-def _cpu_identity() -> str:
-    """This machine's CPU: its model name and a hash of its feature flags (/proc/cpuinfo, read
-    once). Part of the probe's cache key: a driver's verdict depends on the CPU (pip's PoCL fails on
-    AVX-512 only), and Intel's CPU device is called "Intel(R) Xeon(R) Processor" on every Xeon."""
-    model = flags = ""
-    try:
-        with open("/proc/cpuinfo", encoding="utf-8", errors="replace") as f:
-            for line in f:
-                key, _, value = line.partition(":")
-                key = key.strip()
-                if key == "model name" and not model:
-                    model = value.strip()
-                elif key in ("flags", "Features") and not flags:
-                    flags = " ".join(sorted(value.split()))
-                if model and flags:
-                    break
-    except OSError:
-        pass
-    model = model or platform.processor() or platform.machine()
-    return f"{model} [{hashlib.sha256(flags.encode()).hexdigest()[:12]}]"
-
-
 def _key(info: DeviceInfo) -> str:
-    d = info.cl_device
     h = hashlib.sha256()
-    for part in (d.platform.name, d.platform.version, d.name, d.driver_version, d.version, _cpu_identity()):
+    for part in capabilities.driver_identity(info.cl_device):
         h.update(part.encode() + b"\0")
     for p in sorted(kernels_dir().rglob("*")):
         if p.suffix in (".cl", ".h"):
@@ -152,8 +126,7 @@ def select_devices(spec: Optional[str] = None, simulators: bool = False) -> list
     returned unprobed (a Renderer on it probes it: open_device)."""
     devices = list_devices()
     if not devices:
-        raise DeviceError(icd.explain("no OpenCL device found: install one, e.g. "
-                                      "`pip install pocl-binary-distribution`"))
+        raise no_device_error()
     if spec is None or spec.strip().lower() == "all":
         chosen = devices if simulators else [d for d in devices if not d.is_simulator]
     else:
@@ -187,8 +160,7 @@ def default_device_info(spec: Optional[str | DeviceInfo] = None) -> DeviceInfo:
         if not named:
             candidates = [d for d in candidates if not d.is_simulator] or candidates
     if not candidates:
-        raise DeviceError(icd.explain("no OpenCL device found: install one, e.g. "
-                                      "`pip install pocl-binary-distribution`"))
+        raise no_device_error()
     failed = []
     for d in candidates:
         error = probe_error(d)

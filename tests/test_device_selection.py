@@ -208,10 +208,10 @@ def test_the_probe_cache_key_includes_the_cpu_model(monkeypatch):
     devices = list_devices()
     if not devices:
         pytest.skip("no OpenCL device")
-    cpu = device_probe._cpu_identity()
+    cpu = capabilities.cpu_identity()
     assert cpu and isinstance(cpu, str)
     first = device_probe._key(devices[0])
-    monkeypatch.setattr(device_probe, "_cpu_identity", lambda: cpu + " (another CPU)")
+    monkeypatch.setattr(capabilities, "cpu_identity", lambda: cpu + " (another CPU)")
     assert device_probe._key(devices[0]) != first
 
 
