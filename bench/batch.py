@@ -4,8 +4,8 @@
                           [--device NAME] [--gif docs/images/batch-flythrough.gif]
 
 The fly-through is a TOML scene written to a temporary folder: Sponza by absolute path, camera
-keyframes down the atrium (clrender/keyframes.py), 256 seeded point lights of radius 0.05 × the
-scene's diagonal. It is rendered with `clrender.batch.render_frames`:
+keyframes down the atrium (clrender/scene/keyframes.py), 256 seeded point lights of radius 0.05 × the
+scene's diagonal. It is rendered with `clrender.batch.jobs.render_frames`:
 
 * in this process (no Dask);
 * on a LocalCluster of 1 worker, then of 2 workers, each worker with POCL_CPU_MAX_CU_NUM =
@@ -84,8 +84,8 @@ def main(argv=None) -> int:
     from distributed import Client, LocalCluster
 
     import clrender
-    from clrender.aov_io import write_video
-    from clrender.batch import render_frames
+    from clrender.outputs.aov_io import write_video
+    from clrender.batch.jobs import render_frames
 
     sponza = require_scene(SPONZA)
     t0 = time.perf_counter()

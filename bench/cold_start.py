@@ -49,7 +49,7 @@ def vendors_folder(config: str, tmp: Path) -> str:
     folder = tmp / "vendors"
     folder.mkdir()
     if config == "intel":
-        from clrender import icd
+        from clrender.device import icd
         intel = [p for p in icd.pip_implementations() if p.name == "intel"]
         if not intel:
             raise SystemExit("config intel: Intel's CPU runtime is not pip-installed (pip install opencl-rt)")

@@ -40,8 +40,8 @@ def main(argv=None) -> None:
     import imageio.v3 as iio
 
     import clrender
-    from clrender.cli import main as cli
-    from clrender.dataset import load_dataset
+    from clrender.cli.main import main as cli
+    from clrender.dataset.views import load_dataset
 
     scene_path = require_scene(SPONZA)
     scene = clrender.load_scene(scene_path)

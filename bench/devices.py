@@ -36,7 +36,7 @@ from __future__ import annotations
 import os
 
 # The environment before clrender registers pip's OpenCL implementations for this process
-# (clrender/icd.py sets $OCL_ICD_VENDORS at import): the cold renders must start from the user's.
+# (clrender/device/icd.py sets $OCL_ICD_VENDORS at import): the cold renders must start from the user's.
 ORIGINAL_ENV = dict(os.environ)
 
 import argparse  # noqa: E402
@@ -67,7 +67,7 @@ def implementation_key(platform: str, platform_version: str, origin: Optional[st
     """"intel", "pocl-debian", "pocl-pip" (or "pocl-<origin>" for a PoCL from elsewhere, e.g.
     conda), None for what is not one of this benchmark's CPU implementations. By platform, not
     device name: PoCL's device names say "Intel(R) Xeon" too."""
-    from clrender.capabilities import implementation_key as key_of
+    from clrender.device.capabilities import implementation_key as key_of
     key = key_of(platform)
     if key == "intel":
         return "intel"
@@ -125,7 +125,7 @@ def format_table(title: str, rows: list, impls: list, unit: str = "ms", floor: f
 
 def device_key(info) -> Optional[str]:
     """implementation_key of a clrender DeviceInfo; None for GPUs and simulators."""
-    from clrender import capabilities
+    from clrender.device import capabilities
     if info.is_simulator or not capabilities.is_cpu(info.cl_device):
         return None
     try:
@@ -137,7 +137,7 @@ def device_key(info) -> Optional[str]:
 
 def present_implementations() -> dict:
     """{key: DeviceInfo} of the CPU implementations the OpenCL loader lists (the first device of each)."""
-    from clrender.device import list_devices
+    from clrender.device.core import list_devices
     found: dict = {}
     for info in list_devices():
         key = device_key(info)
@@ -149,7 +149,7 @@ def present_implementations() -> dict:
 def device_spec(key: str, info) -> str:
     """A CLRENDER_DEVICE value picking exactly `info`, not its "P:D": a cold run with a fresh cache
     writes its own ICD folder, and the loader may list the implementations in another order there."""
-    from clrender.device import DeviceError, match_devices
+    from clrender.device.core import DeviceError, match_devices
     candidates = {"intel": ["intel"], "pocl-debian": ["pocl debian", "debian"],
                   "pocl-pip": ["pocl pip"]}.get(key, [])
     for spec in candidates:
@@ -164,7 +164,7 @@ def device_spec(key: str, info) -> str:
 
 
 def describe(info) -> dict:
-    from clrender import capabilities
+    from clrender.device import capabilities
     d = info.cl_device
     out = {"label": info.label, "description": info.description, "driver_version": d.driver_version,
            "compute_units": int(d.max_compute_units), "max_work_group_size": int(d.max_work_group_size)}
@@ -227,7 +227,7 @@ class _Worker:
                 "device": self.renderer.device.name}
 
     def frame(self) -> dict:
-        from clrender.pipeline import pass_ms
+        from clrender.render.pipeline import pass_ms
         t0 = time.perf_counter()
         frame = self.renderer.render(self.scene, self.camera)
         t1 = time.perf_counter()

@@ -155,7 +155,7 @@ def run_gl_peer(scene, camera, args, frame, clr_ms, record_clr) -> dict:
 
 def save_side_by_side(frame, gl) -> None:
     import imageio.v3 as iio
-    from clrender.gbuffer import linear_to_srgb8
+    from clrender.abi.gbuffer import linear_to_srgb8
     top = np.concatenate([frame.image, linear_to_srgb8(gl["albedo"])], 1)
     bottom = np.concatenate([((frame.normal * 0.5 + 0.5) * 255).astype(np.uint8),
                              ((np.nan_to_num(gl["normal"]) * 0.5 + 0.5) * 255).astype(np.uint8)], 1)

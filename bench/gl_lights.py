@@ -206,7 +206,7 @@ def icosphere(subdivisions: int = 1) -> tuple[np.ndarray, np.ndarray, float]:
 
 
 def _light_instances(lights) -> np.ndarray:
-    """clrender.structs.light_dtype records -> (N, 13) float32 per-instance attributes."""
+    """clrender.abi.structs.light_dtype records -> (N, 13) float32 per-instance attributes."""
     lights = np.asarray(lights).reshape(-1)
     out = np.zeros((len(lights), 13), np.float32)
     if len(lights):
@@ -315,7 +315,7 @@ class GLLightsPeer(GLPeer):
         self.upload_s += time.perf_counter() - t0
 
     def set_lights(self, lights, ambient: float | None = None) -> None:
-        """Replace the lights (clrender.structs.light_dtype records) without re-uploading geometry."""
+        """Replace the lights (clrender.abi.structs.light_dtype records) without re-uploading geometry."""
         inst = _light_instances(lights)
         if ambient is not None:
             self.ambient = float(ambient)

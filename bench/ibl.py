@@ -27,9 +27,10 @@ import time
 
 import numpy as np
 
-from clrender.pipeline import pass_ms
+from clrender.render.pipeline import pass_ms
 
-from .common import REPO, SPONZA, SPONZA_CAMERA, host_medians, medians, require_scene, time_user_frames, write_record
+from clrender.common import (
+    REPO, SPONZA, SPONZA_CAMERA, host_medians, medians, require_scene, time_user_frames, write_record)
 
 ENVIRONMENT = REPO.parent / "shared" / "environments" / "courtyard.exr"
 CONFIGS = ("ambient", "environment", "blinn_phong")
@@ -72,7 +73,7 @@ def main(argv=None) -> int:
     args = ap.parse_args(argv)
 
     import clrender
-    from clrender.environment import load_environment
+    from clrender.scene.environment import load_environment
     scene = clrender.load_scene(require_scene(SPONZA))
     env = load_environment(args.environment)
     camera = clrender.Camera.look_at(**SPONZA_CAMERA)

@@ -49,7 +49,7 @@ def main(argv=None) -> int:
     import imageio.v3 as iio
 
     import clrender
-    from clrender.environment import load_environment
+    from clrender.scene.environment import load_environment
     w, h = args.size, args.size * 9 // 16
     old = clrender.Renderer(w, h, device=args.device, shading="blinn_phong")
     new = clrender.Renderer(w, h, device=args.device)

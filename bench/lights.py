@@ -38,7 +38,7 @@ import time
 
 import numpy as np
 
-from clrender.pipeline import pass_ms
+from clrender.render.pipeline import pass_ms
 
 from bench.common import (SPONZA, SPONZA_CAMERA, RESULTS, host_medians, medians, require_scene, time_renders,
                           time_user_frames, write_record)
@@ -235,7 +235,7 @@ def make_peer(scene, args):
 
 def tonemap_reinhard(color: np.ndarray) -> np.ndarray:
     """clrender's default display transform (exposure 1): Reinhard c/(1+c), then sRGB to uint8."""
-    from clrender.gbuffer import linear_to_srgb8
+    from clrender.abi.gbuffer import linear_to_srgb8
     c = np.maximum(np.asarray(color, np.float64), 0.0)
     return linear_to_srgb8(c / (1.0 + c))
 

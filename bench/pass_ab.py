@@ -28,8 +28,8 @@ def main(argv=None):
     args = ap.parse_args(argv)
 
     import clrender
-    import clrender.device as dv
-    from clrender.pipeline import pass_ms
+    import clrender.device.core as dv
+    from clrender.render.pipeline import pass_ms
 
     renderers = {}
     if args.baseline is not None:

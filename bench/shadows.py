@@ -27,7 +27,7 @@ from pathlib import Path
 
 import numpy as np
 
-from clrender.pipeline import pass_ms
+from clrender.render.pipeline import pass_ms
 
 from bench.common import REPO, SPONZA, SPONZA_CAMERA, medians, require_scene, time_renders, write_record
 

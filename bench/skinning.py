@@ -11,12 +11,12 @@ and animated joints, to about `--vertices` skinned vertices, plus one `--morph-v
 * posing per frame: the pose pass's device ms (OpenCL profiling events around kernels/pose.cl and
   its copies: morph, skin, normals, tangents and the previous positions for the velocity AOV),
   median after warm-up, and per million deformed vertices, for frames in any order (the previous
-  pose is posed too) and for a frame sequence t, t + dt, ... (the previous positions are kept); next to the same posing in NumPy (clrender.deform.Deformation.
+  pose is posed too) and for a frame sequence t, t + dt, ... (the previous positions are kept); next to the same posing in NumPy (clrender.scene.deform.Deformation.
   posed, vectorized float64, every deformer) and the host's `scene.pose(t, dt)` (animation
   sampling and joint matrices);
 * bytes uploaded per posed frame (joint palette and weights, both poses) against the bind data
   uploaded once;
-* a 48-frame batch at 640x360 through clrender.batch.render_frames (wall seconds, frames per second).
+* a 48-frame batch at 640x360 through clrender.batch.jobs.render_frames (wall seconds, frames per second).
 
 Writes bench/results/skinning-*.json.
 """
@@ -32,7 +32,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .common import write_record
+from clrender.common import write_record
 
 JOINTS = 6
 
@@ -159,8 +159,8 @@ def main(argv=None) -> int:
     ap.add_argument("--device", default=None)
     args = ap.parse_args(argv)
     from clrender import Renderer, load_scene
-    from clrender.batch import render_frames
-    from clrender.timestamps import elapsed_ms
+    from clrender.batch.jobs import render_frames
+    from clrender.device.timestamps import elapsed_ms
 
     width, height = (int(v) for v in args.size.split("x"))
     with tempfile.TemporaryDirectory() as tmp:
@@ -217,7 +217,7 @@ def main(argv=None) -> int:
               f"{per_million:.2f} ms per million deformed vertices (target <= 20)", flush=True)
         print(f"posing (device, pose.cl), a frame sequence (previous positions kept): {seq:.2f} ms per frame = "
               f"{seq_per_million:.2f} ms per million; upload {statistics.median(sent_seq):,.0f} bytes", flush=True)
-        print(f"posing (NumPy, float64, clrender.deform):    {statistics.median(numpy_ms):.1f} ms per frame "
+        print(f"posing (NumPy, float64, clrender.scene.deform):    {statistics.median(numpy_ms):.1f} ms per frame "
               f"({statistics.median(numpy_ms) / med:.0f}x)", flush=True)
         print(f"scene.pose(t, dt) on the host (animation, joint matrices): {statistics.median(host_pose_ms):.1f} ms",
               flush=True)

@@ -46,12 +46,12 @@ from pathlib import Path
 
 import numpy as np
 
-from clrender.pipeline import pass_ms
+from clrender.render.pipeline import pass_ms
 
 from bench.common import REPO, SPONZA, SPONZA_CAMERA, medians, require_scene, time_renders, write_record
 
 PASS_ORDER = ("setup", "binning", "raster", "gbuffer", "particles", "fragments", "light_cull", "ssao", "ssao_blur",
-              "shadow", "shade", "abuffer", "peel", "composite", "tonemap")       # clrender/pipeline.py order
+              "shadow", "shade", "abuffer", "peel", "composite", "tonemap")       # clrender/render/pipeline.py order
 TRANSPARENT_WORDS = ("curtain", "fabric")
 CURTAIN_OPACITY = 0.5
 # The atrium's open volume between the two rows of columns (world units): where the quads go.
@@ -112,7 +112,7 @@ def build_scene(base, *, transparent: bool, eye, n_particles: int, particle_size
     """A new Scene: ``base`` (lights included) with its curtains/fabrics BLEND at opacity 0.5 and
     the particle quads BLEND (``transparent``), or everything OPAQUE (curtains as loaded, quads
     OPAQUE with the same colours). Returns (scene, names of the switched materials)."""
-    from clrender.scene import Material
+    from clrender.scene.model import Material
     materials, switched = [], []
     for m in base.materials:
         if any(w in m.name.lower() for w in TRANSPARENT_WORDS):

@@ -1,6 +1,6 @@
 """clrender: a tiled deferred renderer whose every pixel is computed by OpenCL kernels."""
-from .camera import Camera
-from .scene import Material, Scene, SceneError, Sun, Texture
+from clrender.scene.camera import Camera
+from clrender.scene.model import Material, Scene, SceneError, Sun, Texture
 
 __all__ = ["Camera", "Material", "Scene", "SceneError", "Sun", "Texture", "load_scene",
            "Renderer", "RenderConfig", "Frame", "list_devices"]
@@ -9,12 +9,12 @@ __all__ = ["Camera", "Material", "Scene", "SceneError", "Sun", "Texture", "load_
 def __getattr__(name):
     # Lazy: importing clrender must not initialise OpenCL.
     if name == "load_scene":
-        from .loaders import load_scene
+        from clrender.loaders import load_scene
         return load_scene
     if name in ("Renderer", "RenderConfig", "Frame"):
-        from . import renderer
+        from clrender.render import renderer
         return getattr(renderer, name)
     if name == "list_devices":
-        from .device import list_devices
+        from clrender.device.core import list_devices
         return list_devices
     raise AttributeError(name)

@@ -1,5 +1,5 @@
 """`python -m clrender ...`: the same as the `clrender` command."""
-from .cli import run
+from clrender.cli.main import run
 
 if __name__ == "__main__":
     run()

@@ -33,7 +33,7 @@ def show_bars(enabled: bool) -> None:
 
 def report_lines(stream) -> None:
     """Also write each stage's total and items as lines to `stream` (the probe child reports to its
-    parent this way: clrender/device_probe.py)."""
+    parent this way: clrender/device/probe.py)."""
     global _lines
     _lines = stream
 

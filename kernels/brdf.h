@@ -24,7 +24,7 @@
 #include "vec.h"
 
 #ifndef MIN_ROUGHNESS
-#define MIN_ROUGHNESS 0.01f       /* clrender/scene.py MIN_ROUGHNESS: α >= 1e-4 keeps D finite */
+#define MIN_ROUGHNESS 0.01f       /* clrender/scene/model.py MIN_ROUGHNESS: α >= 1e-4 keeps D finite */
 #endif
 #define DIELECTRIC_F0 0.04f
 #define INV_PI 0.318309886f

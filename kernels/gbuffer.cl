@@ -9,7 +9,7 @@
  * and the motion: the surface point interpolated from the previous frame's vertex positions
  * (prev_positions: the scene's own positions unless objects moved, Scene.set_transform) and
  * projected by the previous frame's view-projection. Everything is packed per
- * the layout table (clrender/gbuffer.py, kernels/gbuffer.h; gbuffer_pack.h).
+ * the layout table (clrender/abi/gbuffer.py, kernels/gbuffer.h; gbuffer_pack.h).
  * GB_WRITE (bit i: plane i) selects the planes written: all for the deferred pipeline; the
  * light pre-pass's thin G-buffer skips albedo/specular intensity and emission/occlusion (built
  * with SURFACE_TEXTURES 0 and SURFACE_EXTRAS 0: none of those textures is read); light-indexed

@@ -1,4 +1,4 @@
-/* gbuffer.h: packing the G-buffer. The layout table lives in clrender/gbuffer.py, which
+/* gbuffer.h: packing the G-buffer. The layout table lives in clrender/abi/gbuffer.py, which
  * passes these values with -D; the defaults below equal it (tests/test_gbuffer.py checks). */
 #ifndef CLRENDER_GBUFFER_H
 #define CLRENDER_GBUFFER_H
@@ -66,7 +66,7 @@
 #define SPEC_POWER_LOG2_MAX 11.0f
 
 /* Codecs, written for VEC-wide vectors (vec.h) so the resolve packs VEC pixels at once;
- * clrender/gbuffer.py decodes them. */
+ * clrender/abi/gbuffer.py decodes them. */
 static inline uintV unormV(floatV v, int bits)
 {
     return convert_uintV(fmin(fmax(v, 0.0f), 1.0f) * (float)((1 << bits) - 1) + 0.5f);
@@ -82,7 +82,7 @@ static inline uintV pack_float2V(floatV a, floatV b, int bits)
 #define SRGB_ENCODE_INTERVALS 4096
 #endif
 
-/* 8-bit sRGB encoding by table (clrender/gbuffer.py srgb_encode_table): linear [0,1] in
+/* 8-bit sRGB encoding by table (clrender/abi/gbuffer.py srgb_encode_table): linear [0,1] in
  * SRGB_ENCODE_INTERVALS intervals, each with its base code and the one code boundary inside
  * it; exact rounding of the sRGB curve without pow(). */
 static inline uintV pack_srgb8V(floatV x, constant float2* srgb_encode)

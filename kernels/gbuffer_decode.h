@@ -16,7 +16,7 @@ typedef struct {
 } LitPointV;
 
 /* Normal, power and depth from the normal/power and linear-depth words of foreground lanes fg;
- * on the glTF-BRDF lanes `gltf` the power byte is the roughness (clrender/gbuffer.py). */
+ * on the glTF-BRDF lanes `gltf` the power byte is the roughness (clrender/abi/gbuffer.py). */
 static inline LitPointV decode_lit_point(uintV w_nrm, uintV w_depth, intV fg, float far, intV gltf)
 {
     LitPointV s;

@@ -1,5 +1,5 @@
 /* gbuffer_pack.h: a surface packed into the G-buffer's planes (the layout table,
- * clrender/gbuffer.py and gbuffer.h), shared by the passes that write G-buffer planes:
+ * clrender/abi/gbuffer.py and gbuffer.h), shared by the passes that write G-buffer planes:
  * the G-buffer resolve (gbuffer.cl; all planes for the deferred pipeline, the thin planes for
  * the light pre-pass, depth and id for light-indexed) and the passes that write the remaining
  * planes as AOVs after shading (material.cl, forward_shade.cl), so every pipeline's Frame

@@ -29,7 +29,7 @@
  *     out  = (1 + s · (c - 1)) · (1 - ink), s = hatching_saturation
  *   i.e. the colour desaturated toward white paper ("désaturé mais pas complètement": s of its
  *   chroma kept, 0 = black ink on white, 1 = the full colour), darkened by the strokes. The maps
- *   are nested (clrender/tam.py), so ink never decreases as the tone darkens.
+ *   are nested (clrender/passes/tam.py), so ink never decreases as the tone darkens.
  *   The outline test runs without branches over the lanes (selects); normals are decoded only
  *   when a lane's cheaper tests (background, depth) left the question open, and only those of
  *   the neighbours that need them. The tonal art map is read only for runs with a foreground pixel.
@@ -37,7 +37,7 @@
  * Buffers: ldr float[3][H·W] tone-mapped linear planes (input); gbuffer uint[GB_PLANES][H·W]
  *          (linear depth, normal, triangle id planes; layout by gbuffer.h's GB_* defines, the
  *          output-resolution G-buffer after any supersample resolve); tam float[TONES][LEVEL_TEXELS]
- *          ink coverage in [0, 1] (clrender/tam.py's layout: per tone, level l at offset
+ *          ink coverage in [0, 1] (clrender/passes/tam.py's layout: per tone, level l at offset
  *          4·(TAM_SIZE² - (TAM_SIZE >> l)²)/3, row-major); out float[3][H·W] (a separate buffer).
  * Work-groups: 2-D, any shape (clrender/passes/hatching.py: launch_2d's fixed 8×8 work-items over
  *          ceil(W / VEC) × H, the global size rounded up; runs starting outside the image return).

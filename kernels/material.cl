@@ -23,7 +23,7 @@
  * covered by one surface keeps c_0 exactly.
  * `write_aov` (one sample, whose surface is the pixel centre's): the albedo/specular and the
  * emissive/occlusion planes of the G-buffer, with the same bits as gbuffer.cl (with msaa pass 1
- * writes them, clrender/gbuffer.py geometry_planes).
+ * writes them, clrender/abi/gbuffer.py geometry_planes).
  *
  * Buffers: vis_prim int[W·H] (`material`), vis_prims int[samples][W·H] (`material_samples`;
  *          plane s is sample s's), prims Prim[*];

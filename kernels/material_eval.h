@@ -5,7 +5,7 @@
  * (MAT_METALLIC_ROUGHNESS) mapped into the report's terms: albedo = base·(1 − m), specular
  * intensity = mix(0.04, luminance(base), m), power = clamp(2/r⁴ − 2, 1, 2048), except on materials
  * shaded with the glTF BRDF (MAT_GLTF_BRDF), which keep base colour, metallic and roughness in the
- * albedo, specular intensity and power fields (brdf.h, clrender/gbuffer.py); a tangent-space
+ * albedo, specular intensity and power fields (brdf.h, clrender/abi/gbuffer.py); a tangent-space
  * normal map rotating the unit normal through the Gram-Schmidt TBN frame; occlusion =
  * 1 + strength·(R − 1); emissive = factor × texture; unlit: albedo = base, no specular.
  * Every texture slot reads its own uv set through its KHR_texture_transform matrix, with the
@@ -16,7 +16,7 @@
 #ifndef CLRENDER_MATERIAL_EVAL_H
 #define CLRENDER_MATERIAL_EVAL_H
 
-#include "brdf.h"              /* DIELECTRIC_F0, MIN_ROUGHNESS (clrender/scene.py), gltf_lanes */
+#include "brdf.h"              /* DIELECTRIC_F0, MIN_ROUGHNESS (clrender/scene/model.py), gltf_lanes */
 
 /* The lanes `on` whose material has a texture in slot `slot` (*tex: its index, per lane). */
 static inline intV slot_lanes(const SceneV* sc, intV mat, int slot, intV on, intV* tex)

@@ -1,4 +1,4 @@
-/* mipmap.cl: one mip level of the texture pool from the level above (clrender/texture_pool.py).
+/* mipmap.cl: one mip level of the texture pool from the level above (clrender/render/texture_pool.py).
  *
  * Algorithm: bit-identical to the host definition `texture_pool.mip_chain` (PIL's BOX resize of
  * float32 linear channels, then 8-bit encoding). PIL resizes in two passes, each output a sum, in

@@ -1,5 +1,5 @@
 /* pose.cl: the vertex pre-pass of skinned and morphing meshes (host side: clrender/passes/pose.py;
- * the rules: clrender/deform.py, glTF 2.0 §3.7.2.2 and §3.7.3).
+ * the rules: clrender/scene/deform.py, glTF 2.0 §3.7.2.2 and §3.7.3).
  *
  * Algorithm, two kernels:
  * `morph_targets`: one work-item per vertex of a mesh with morph targets: p = p0 + sum_t w_t dP_t

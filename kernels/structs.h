@@ -1,4 +1,4 @@
-/* Structs shared by host and device. clrender/structs.py holds the matching numpy dtypes
+/* Structs shared by host and device. clrender/abi/structs.py holds the matching numpy dtypes
  * (tests/test_structs.py checks sizes and offsets on every device). Only 32/64-bit scalars
  * and fixed arrays: no bool, no float3, so the layout is the same on every compiler. */
 #ifndef CLRENDER_STRUCTS_H
@@ -106,7 +106,7 @@ typedef struct {
 
 /* Light.falloff: the report's (1 - (d/r)^2)^3, or KHR_lights_punctual's inverse square (intensity
  * in candela) with the extension's range window, or without it (a light with no range: culled at
- * its radius, where I/d^2 has fallen below 1/256 of I; clrender/loaders/lights.py). */
+ * its radius, where I/d^2 has fallen below 1/256 of I; clrender/scene/lights.py). */
 #define LIGHT_FALLOFF_REPORT 0
 #define LIGHT_FALLOFF_INVERSE_SQUARE 1
 #define LIGHT_FALLOFF_INVERSE_SQUARE_UNBOUNDED 2
@@ -127,7 +127,7 @@ typedef struct {
 } Light;
 
 /* One shadow map: a light's view rendered by setup/binning/raster into a square region of
- * the shadow atlas (clrender/shadow_views.py builds them). For p in world space:
+ * the shadow atlas (clrender/passes/shadow_views.py builds them). For p in world space:
  * ndc = (r0·p, r1·p) / (r3·p), depth = r2·p (linear: view depth for a spot, distance along
  * the sun direction for an orthographic sun cascade, whose r3 = (0, 0, 0, 1)). */
 typedef struct {

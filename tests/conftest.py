@@ -1,7 +1,7 @@
 """Shared pytest configuration: OpenCL device selection and the renderer factory.
 
 --device NAME|all   which OpenCL devices the `device` fixture runs on (default: $CLRENDER_TEST_DEVICE,
-                    else the device a Renderer picks, clrender.device_probe.default_device_info;
+                    else the device a Renderer picks, clrender.device.probe.default_device_info;
                     `all` = every device except simulators such as Oclgrind, which only run when
                     named). NAME is a case-insensitive substring of "platform / device" or "P:D".
 
@@ -105,7 +105,7 @@ def _selected_devices(config):
         return cached
     spec, explicit = _device_spec(config)
     try:
-        from clrender.device_probe import default_device_info, select_devices     # lazy: imports pyopencl
+        from clrender.device.probe import default_device_info, select_devices     # lazy: imports pyopencl
     except ImportError as exc:
         result = [(None, f"OpenCL unavailable ({exc})")]
     else:
@@ -144,7 +144,7 @@ def pytest_generate_tests(metafunc):
 
 @pytest.fixture(scope="session")
 def device(request):
-    """One selected OpenCL device (a clrender.device.DeviceInfo: `.id` "P:D", `.label`)."""
+    """One selected OpenCL device (a clrender.device.core.DeviceInfo: `.id` "P:D", `.label`)."""
     return request.param
 
 

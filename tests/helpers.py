@@ -7,7 +7,7 @@ import pytest
 import numpy as np
 
 from clrender import load_scene
-from clrender.scene import SceneError
+from clrender.scene.model import SceneError
 
 
 # Shaded colour against the float64 NumPy reference (tests/reference/shading.py), as a fraction
@@ -43,12 +43,12 @@ def assert_scene_error(path, words) -> str:
 
 
 def record_render_configs(monkeypatch) -> list:
-    """Replace clrender.renderer.Renderer by a subclass that appends each new renderer's
+    """Replace clrender.render.renderer.Renderer by a subclass that appends each new renderer's
     RenderConfig to the returned list (what the CLI turned its flags and [render] table into). The
-    CLI's background warm-up renderer (clrender.warmup.prepare_in_background) is not counted."""
+    CLI's background warm-up renderer (clrender.tools.warmup.prepare_in_background) is not counted."""
     import threading
 
-    from clrender import renderer as renderer_module
+    from clrender.render import renderer as renderer_module
 
     seen = []
 
@@ -84,8 +84,8 @@ def pixel_far_points(camera, width: int, height: int) -> np.ndarray:
 
 def reach_the_raster_guard(monkeypatch) -> None:
     """Let Scenes hold NaN, infinite or huge vertex positions for the rest of a test. Scenes refuse
-    them (clrender.scene.check_positions: a SceneError naming the vertex), but the raster kernels
+    them (clrender.scene.model.check_positions: a SceneError naming the vertex), but the raster kernels
     still drop and count such triangles (docs/raster_contract.md: device-side posing by skins and
     morph targets can produce them), and the raster tests check that guard on purpose."""
-    import clrender.scene as scene_module
+    import clrender.scene.model as scene_module
     monkeypatch.setattr(scene_module, "check_positions", lambda *args, **kwargs: None)

@@ -207,8 +207,8 @@ def test_cli_flags_and_edges_aov(device, tmp_path, capsys, monkeypatch):
     """--edge-aa/--edge-depth-threshold/--edge-normal-threshold/--fxaa reach the RenderConfig;
     --aov edges writes the uint8 mask (.npy) and a white-on-black preview, no .exr."""
     import imageio.v3 as iio
-    from clrender import cli
-    from clrender import renderer as renderer_module
+    from clrender.cli import main as cli
+    from clrender.render import renderer as renderer_module
 
     monkeypatch.delenv(cli.ENV_DEBUG, raising=False)
     seen = record_render_configs(monkeypatch)

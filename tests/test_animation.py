@@ -1,4 +1,4 @@
-"""glTF animation (clrender/animation.py): node TRS channels sampled per the glTF 2.0 spec
+"""glTF animation (clrender/scene/animation.py): node TRS channels sampled per the glTF 2.0 spec
 (Appendix C) at hand-computed times, the world matrices of nested nodes, posing meshes / camera /
 lights, the Khronos sample files, and renders of a posed scene (depth against a scene built from
 the transformed vertices, velocity against the analytic reprojection)."""
@@ -15,7 +15,7 @@ from gltf_files import primitive, write_gltf
 from helpers import shared_file
 
 from clrender import Camera, Scene, load_scene
-from clrender.animation import Sampler, slerp, trs_matrix
+from clrender.scene.animation import Sampler, slerp, trs_matrix
 
 S45 = np.sqrt(0.5)
 
@@ -170,7 +170,7 @@ def test_camera_and_lights_follow_their_nodes(tmp_path):
 
 def test_weight_channels_need_morph_targets(tmp_path):
     """A `weights` channel on a node whose mesh has no morph targets: a SceneError naming the node
-    (clrender.deform poses real ones: tests/test_skinning.py)."""
+    (clrender.scene.deform poses real ones: tests/test_skinning.py)."""
     weights = {"channels": [{"sampler": 0, "target": {"node": 0, "path": "weights"}}],
                "samplers": [{"input": np.float32([0, 1]), "output": np.float32([0, 1])}]}
     path = write_gltf(tmp_path / "w.gltf", animations=[weights])

@@ -24,8 +24,10 @@ import numpy as np
 import pytest
 
 import clrender
-from clrender import Camera, Scene, SceneError, memory, structs
-from clrender.device import DeviceError
+from clrender import Camera, Scene, SceneError
+from clrender.render import memory
+from clrender.abi import structs
+from clrender.device.core import DeviceError
 from helpers import assert_scene_error, SHADING_TOL
 from reference import shading as ref_shading
 from reference.raster import pixel_exact_camera, rasterize, screen_to_world, triangles_scene
@@ -217,7 +219,7 @@ def test_memory_check_names_bytes_needed_and_available(device, monkeypatch):
         r.render(big, pixel_exact_camera())
     monkeypatch.undo()
     # 16384² (the largest size accepted) on the real device: an error unless it really fits.
-    real, max_alloc = memory.limits(clrender.device.Device.get(device.id).cl_device)
+    real, max_alloc = memory.limits(clrender.device.core.Device.get(device.id).cl_device)
     big_need = memory.estimate(16384, 16384, config)
     if big_need["total"] > real or big_need["largest"] > max_alloc:
         with pytest.raises(memory.DeviceMemoryError, match="bytes"):
@@ -248,7 +250,7 @@ def test_8192_square_frame(first_device):
     few pixels."""
     size = 8192
     need = memory.estimate(size, size, clrender.RenderConfig())
-    total, max_alloc = memory.limits(clrender.device.Device.get(first_device.id).cl_device)
+    total, max_alloc = memory.limits(clrender.device.core.Device.get(first_device.id).cl_device)
     if need["total"] > total or need["largest"] > max_alloc:      # e.g. Oclgrind's 128 MiB
         with pytest.raises(memory.DeviceMemoryError, match="bytes"):
             clrender.Renderer(size, size, device=first_device.id)
@@ -574,7 +576,7 @@ def test_fragment_buffer_that_cannot_fit_is_refused(device, monkeypatch):
     """A-buffer growth past the device's memory: DeviceMemoryError stating bytes needed and available,
     raised before the larger buffer is allocated (the limits are lowered to make it happen)."""
     import clrender
-    from clrender import memory
+    from clrender.render import memory
     n = 40                                          # 40 full-frame layers: 40 fragments per pixel
     quads = [np.array([[-9, -9, -2 - k], [9, -9, -2 - k], [9, 9, -2 - k], [-9, 9, -2 - k]], np.float32)
              for k in range(n)]

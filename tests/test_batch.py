@@ -14,8 +14,10 @@ import imageio.v3 as iio
 import numpy as np
 import pytest
 
-from clrender import Renderer, aov_io, cli, cli_batch, load_scene
-from clrender.batch import render_frames
+from clrender import Renderer, load_scene
+from clrender.outputs import aov_io
+from clrender.cli import main as cli, batch as cli_batch
+from clrender.batch.jobs import render_frames
 
 REPO = Path(__file__).resolve().parents[1]
 ORBIT = REPO / "scenes" / "orbit.toml"
@@ -168,7 +170,7 @@ def test_bad_batch_input_is_one_line_before_rendering(tmp_path, capsys, monkeypa
     monkeypatch.setattr(aov_io, "ffmpeg_available", lambda: False)
     monkeypatch.setattr(cli_batch, "SCHEDULER_TIMEOUT_S", 2)
     rendered = []
-    monkeypatch.setattr("clrender.batch.render_task", lambda task: rendered.append(task))
+    monkeypatch.setattr("clrender.batch.jobs.render_task", lambda task: rendered.append(task))
     (tmp_path / "file").write_text("")
     out = tmp_path / "out"
     extra = [e.replace("{OUT}", str(out)).replace("{FILE}", str(tmp_path / "file")) for e in extra]

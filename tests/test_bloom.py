@@ -122,7 +122,7 @@ def border_scene() -> Scene:
 def run_bloom_pass(device, color: np.ndarray, **opts) -> np.ndarray:
     """BloomPass alone on an (H, W, 3) colour; returns its (H, W, 3) output."""
     import pyopencl.array as cla
-    from clrender.device import Device
+    from clrender.device.core import Device
     from clrender.passes.base import Resources
     from clrender.passes.bloom import BloomPass
     dev = Device.get(device)

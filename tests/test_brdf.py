@@ -37,7 +37,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from clrender import Camera, Material, Scene, structs
+from clrender import Camera, Material, Scene
+from clrender.abi import structs
 from reference import brdf_reference as B
 from reference import shading as ref
 from reference import transparency as tref

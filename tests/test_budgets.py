@@ -313,7 +313,7 @@ def test_large_texture_within_the_budget_decodes_without_pillow_warning(tmp_path
 
 def test_hdr_environment_header_is_checked(tmp_path, monkeypatch):
     """A 2048 x 1024 RLE header over 140 KB: its 32 MB of pixels are refused under a 16 MB budget."""
-    from clrender.environment import load_environment
+    from clrender.scene.environment import load_environment
     path = tmp_path / "huge.hdr"
     line = bytes([2, 2, 2048 >> 8, 2048 & 255]) + bytes([128 + 127, 0] * 17 * 4)
     path.write_bytes(b"#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n-Y 1024 +X 2048\n" + line * 1024)
@@ -325,7 +325,7 @@ def test_hdr_environment_header_is_checked(tmp_path, monkeypatch):
 
 def test_exr_environment_header_is_checked(tmp_path, monkeypatch):
     OpenEXR = pytest.importorskip("OpenEXR")
-    from clrender.environment import load_environment
+    from clrender.scene.environment import load_environment
     path = tmp_path / "env.exr"
     pixels = np.zeros((512, 1024, 3), np.float32)
     OpenEXR.File({"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage},
@@ -356,7 +356,7 @@ def test_hundred_million_frames_plan_lazily(tmp_path):
 
 
 def test_lazy_plan_still_refuses_shared_files(tmp_path):
-    from clrender.batch import plan_tasks
+    from clrender.batch.jobs import plan_tasks
     scene = write_obj(tmp_path)
     with pytest.raises(ValueError, match="gives one file"):
         plan_tasks([str(scene)], range(0, 10_000_000), str(tmp_path / "out_{time:.0f}.png"), 24.0)
@@ -378,7 +378,7 @@ def test_cli_hundred_million_frames_start_at_once(tmp_path):
             print(json.dumps({{"frame": task.frame, "image": task.image, "s": time.perf_counter() - start,
                               "growth_mb": peak_mb()}}), flush=True)
             os._exit(0)
-        clrender.batch.render_task = first_frame
+        clrender.batch.jobs.render_task = first_frame
         clrender.cli.main(["render", {str(scene)!r}, "--frames", "0:100000000", "-o", {str(tmp_path / 'out')!r} + "/",
                            "--width", "8", "--height", "8", "-q"])
         print(json.dumps({{"frame": None}}))
@@ -390,7 +390,7 @@ def test_cli_hundred_million_frames_start_at_once(tmp_path):
 def test_dataset_views_are_checked_before_planning(tmp_path, capsys):
     """`clrender dataset --views 100000000`: a dataset's camera files list every view before the first
     renders, so the count is checked against the budget first: one line, at once, nothing written."""
-    from clrender import cli
+    from clrender.cli import main as cli
     scene = write_obj(tmp_path)
     out = tmp_path / "ds"
     start = time.perf_counter()

@@ -1,4 +1,4 @@
-"""clrender's on-disk cache (clrender/cache.py): least-recently-used pruning under a cap, PoCL's
+"""clrender's on-disk cache (clrender/device/cache.py): least-recently-used pruning under a cap, PoCL's
 program folders as entries, damaged entries rebuilt (never returned), an unusable folder said
 once, and `clrender cache info|clear`. Pure Python: no OpenCL."""
 from __future__ import annotations
@@ -9,7 +9,8 @@ import warnings
 
 import pytest
 
-from clrender import cache, cli
+from clrender.device import cache
+from clrender.cli import main as cli
 
 MB = 2**20
 

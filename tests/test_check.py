@@ -4,7 +4,8 @@ from pathlib import Path
 
 import numpy as np
 
-from clrender import check, cli
+from clrender.tools import check
+from clrender.cli import main as cli
 from helpers import skip_or_fail
 
 REPO = Path(__file__).resolve().parents[1]
@@ -47,8 +48,8 @@ def _compared_devices():
     """Two real devices (the default and the next: `clrender check --device all` in .ci/run compares
     every implementation); with fewer than two, a real one and Oclgrind (a second implementation,
     slow: the callers keep their cases small); with fewer than two of those, skip (CI: fail)."""
-    from clrender.device import preference_order
-    from clrender.device_probe import select_devices
+    from clrender.device.core import preference_order
+    from clrender.device.probe import select_devices
     devices = preference_order(select_devices("all"))[:2]
     if len(devices) < 2:
         devices = sorted(select_devices("all", simulators=True), key=lambda d: d.is_simulator)[:2]
@@ -73,7 +74,7 @@ def test_cli_check_exit_status_and_json(tmp_path, capsys, monkeypatch):
     devices = _compared_devices()
     scene = REPO / "scenes" / "demo.toml"
     args = ["check", "--device", "all", "--scene", str(scene), "--width", "16", "--height", "12", "-q"]
-    monkeypatch.setattr("clrender.device_probe.select_devices", lambda spec=None, simulators=False: devices)
+    monkeypatch.setattr("clrender.device.probe.select_devices", lambda spec=None, simulators=False: devices)
     out = tmp_path / "report.json"
     assert cli.main(args + ["--json", str(out), "--min-devices", "2"]) == 0       # the devices agree
     report = json.loads(out.read_text())

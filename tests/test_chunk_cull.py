@@ -34,7 +34,7 @@ def assert_no_device_diagnostics(capfd):
 
 
 def cl_device(info):
-    from clrender.device import Device
+    from clrender.device.core import Device
     return Device.get(info.id)
 
 
@@ -106,8 +106,8 @@ def cluster_scene(centers, sizes=None, last=None, seed=0):
 
 
 def ortho_matrix(direction, center, extent, depth0):
-    """A sun-cascade style matrix (clrender/shadow_views.py): clip.w = 1, clip.z = linear depth."""
-    from clrender.shadow_views import _basis
+    """A sun-cascade style matrix (clrender/passes/shadow_views.py): clip.w = 1, clip.z = linear depth."""
+    from clrender.passes.shadow_views import _basis
     s, u, f = _basis(direction)
     m = np.zeros((4, 4))
     m[0, :3], m[0, 3] = s * 2 / extent, -(s @ center) * 2 / extent
@@ -120,7 +120,7 @@ def ortho_matrix(direction, center, extent, depth0):
 def run_setup(device, positions, triangles, matrix, width, height, near, ortho, chunk_cull, select="all"):
     """SetupPass alone on uploaded arrays: (prims, prim total, statuses, chunk verdicts or None)."""
     import pyopencl.array as cla
-    from clrender import structs
+    from clrender.abi import structs
     q = device.queue
     n = len(triangles)
     mats = np.zeros(1, structs.material_dtype)
@@ -255,7 +255,7 @@ def test_transparent_select_statuses(device):
     glass = clrender.Material(base_color=(1, 1, 1, 0.5), alpha_mode="BLEND")
     scene.materials.append(glass)
     scene.triangle_material[::3] = len(scene.materials) - 1
-    from clrender import scene_gpu
+    from clrender.render import scene_upload as scene_gpu
     from dataclasses import replace
     res = scene_gpu.upload(scene, dev)
     w, h = 64, 48

@@ -11,7 +11,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from clrender import aov_io, cli
+from clrender.outputs import aov_io
+from clrender.cli import main as cli
 from helpers import record_render_configs
 
 REPO = Path(__file__).resolve().parent.parent
@@ -63,7 +64,7 @@ def _no_debug(monkeypatch):
 
 
 def _have_devices() -> bool:
-    from clrender.device import list_devices
+    from clrender.device.core import list_devices
     return bool(list_devices())
 
 
@@ -114,7 +115,7 @@ def test_render_png(quad, tmp_path, device, capsys):
     assert img.shape[:2] == (H, W)
     assert img.max() > 0, "image is all black"
     # No lights: the white material shows the ambient term, tone-mapped (grey, not black).
-    from clrender.gbuffer import linear_to_srgb8
+    from clrender.abi.gbuffer import linear_to_srgb8
     ambient = 0.03
     expect = int(linear_to_srgb8(np.float32(ambient / (1 + ambient))))
     assert (np.abs(img[H // 2, W // 2, :3].astype(int) - expect) <= 1).all(), img[H // 2, W // 2]
@@ -216,7 +217,7 @@ def test_render_size_from_scene_settings(quad, tmp_path, device, capsys):
 def test_transparency_options_reach_the_config(quad, tmp_path, device, capsys, monkeypatch):
     """--transparency/--peel-layers/--max-fragments-per-pixel/--refraction become the RenderConfig
     fields of the same names; without them the config keeps its defaults."""
-    from clrender import renderer as renderer_module
+    from clrender.render import renderer as renderer_module
 
     seen = record_render_configs(monkeypatch)
     common = [str(quad), "--width", "16", "--height", "12", "--device", device.id, "-q", *CAMERA_ARGS]

@@ -26,8 +26,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from clrender import cli
-from clrender.scene import SceneError
+from clrender.cli import main as cli
+from clrender.scene.model import SceneError
 from helpers import in_ci
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -117,7 +117,7 @@ def test_unwritable_output_fails_before_rendering_naming_the_output(tmp_path, ca
     blocker.write_text("x")
     import threading
 
-    from clrender import renderer
+    from clrender.render import renderer
     rendered = []
     original = renderer.Renderer.render
 
@@ -132,7 +132,7 @@ def test_unwritable_output_fails_before_rendering_naming_the_output(tmp_path, ca
 
 
 def test_write_errors_name_the_output_not_the_temporary_file(tmp_path):
-    from clrender.aov_io import atomic_write
+    from clrender.outputs.aov_io import atomic_write
 
     def fail(tmp):
         raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), tmp)
@@ -151,7 +151,7 @@ def _dead_pid() -> int:
 
 
 def test_leftover_temporaries_are_removed_by_the_next_write_and_by_resume(tmp_path):
-    from clrender import aov_io
+    from clrender.outputs import aov_io
     dead = _dead_pid()
     stale = tmp_path / f".frame_0001.{dead}.abcd1234.tmp.exr"     # a SIGKILL mid-write left it
     old = tmp_path / ".frame_0002.k2j4h5g6.tmp.png"                # older clrender: no pid, an hour old
@@ -239,8 +239,9 @@ def test_interrupted_build_is_an_interrupt_and_caches_nothing(monkeypatch):
     """A SIGINT kills the compiler's child processes too: the build's failure is the interrupt."""
     import pyopencl as cl
 
-    from clrender import device as device_module, interrupt
-    from clrender.device import Device, ProgramSpec
+    from clrender.device import core as device_module
+    from clrender import interrupt
+    from clrender.device.core import Device, ProgramSpec
     dev = Device.__new__(Device)
     dev.context, dev.built, dev.keep_binaries = None, [], False
 
@@ -276,7 +277,8 @@ class _Stage:
 
 
 def test_interrupted_device_probe_is_not_cached_as_a_broken_device(monkeypatch):
-    from clrender import device_probe, interrupt
+    from clrender.device import probe as device_probe
+    from clrender import interrupt
     writes = []
     monkeypatch.setattr(device_probe.cache, "read_json", lambda name: None)
     monkeypatch.setattr(device_probe.cache, "write_json", lambda name, data: writes.append(name))
@@ -389,7 +391,7 @@ def test_exr_with_a_bad_size_header_is_one_line(tmp_path, capfd):
     data[at:at + 16] = struct.pack("<4i", 0, 0, 15, 2 ** 20)          # 2^20 rows in a 380-byte file
     bad = tmp_path / "bad.exr"
     bad.write_bytes(bytes(data))
-    from clrender.environment import read_exr
+    from clrender.scene.environment import read_exr
     capfd.readouterr()
     with pytest.raises(SceneError) as info:
         read_exr(bad)

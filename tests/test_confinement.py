@@ -292,7 +292,7 @@ def test_toml_mesh_and_environment_outside(dirs, opened):
     assert "mesh[0].path" in msg
     (scene / "b.toml").write_text(f'[[mesh]]\npath = "{outside / "tri.obj"}"\n')
     _refused(scene / "b.toml", str(outside / "tri.obj"), "b.toml", opened, outside)
-    from clrender.environment import write_rgbe
+    from clrender.scene.environment import write_rgbe
     write_rgbe(outside / "env.hdr", np.ones((4, 8, 3), np.float32))
     (scene / "tri.obj").write_text(TRI_OBJ)
     (scene / "c.toml").write_text('[[mesh]]\npath = "tri.obj"\n[environment]\nsource = "../outside/env.hdr"\n')
@@ -333,7 +333,7 @@ def _one_error_line(capsys) -> str:
 
 
 def test_cli_info_and_allow_outside(dirs, capsys, monkeypatch):
-    from clrender import cli
+    from clrender.cli import main as cli
     monkeypatch.delenv("CLRENDER_LOG", raising=False)
     scene, outside = dirs
     path = _gltf(scene / "s.gltf", buffer_uri="../outside/secret.bin")
@@ -350,7 +350,7 @@ def test_cli_info_and_allow_outside(dirs, capsys, monkeypatch):
 
 def test_cli_render_and_batch_allow_outside(dirs, tmp_path, capsys, device, monkeypatch):
     """`render` (a still) and `render --frames` (the batch path: tasks carry the folders to workers)."""
-    from clrender import cli
+    from clrender.cli import main as cli
     monkeypatch.delenv("CLRENDER_LOG", raising=False)
     scene, outside = dirs
     (scene / "m.obj").write_text(f"mtllib {outside / 'good.mtl'}\nusemtl red\n" + TRI_OBJ)
@@ -370,7 +370,7 @@ def test_cli_render_and_batch_allow_outside(dirs, tmp_path, capsys, device, monk
 
 
 def test_render_frames_library_allow(dirs, tmp_path, device):
-    from clrender.batch import render_frames
+    from clrender.batch.jobs import render_frames
     scene, outside = dirs
     (scene / "m.obj").write_text(f"mtllib {outside / 'good.mtl'}\nusemtl red\n" + TRI_OBJ)
     result = render_frames(scene / "m.obj", [0], tmp_path / "o1", width=16, height=12, device=device.id)
@@ -381,7 +381,7 @@ def test_render_frames_library_allow(dirs, tmp_path, device):
 
 
 def test_cli_dataset_allow_outside(dirs, tmp_path, capsys, device, monkeypatch):
-    from clrender import cli
+    from clrender.cli import main as cli
     monkeypatch.delenv("CLRENDER_LOG", raising=False)
     scene, outside = dirs
     path = _gltf(scene / "s.gltf", buffer_uri="../outside/tri.bin")

@@ -13,8 +13,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from clrender import aov_io
-from clrender.batch import render_frames
+from clrender.outputs import aov_io
+from clrender.batch.jobs import render_frames
 
 distributed = pytest.importorskip("distributed", reason="Dask tests need dask[distributed] (pip install -e .[test])")
 

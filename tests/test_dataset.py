@@ -1,4 +1,4 @@
-"""`clrender dataset` (clrender.dataset, clrender.cli_dataset): exports re-render bit for bit from their
+"""`clrender dataset` (clrender.dataset, clrender.cli.dataset): exports re-render bit for bit from their
 written cameras (transforms.json and COLMAP), depth/mask files match the frame, the formats agree with
 each other (and with pycolmap when installed), --resume re-renders only what is missing, layouts frame
 the bounds, docs/datasets.md's example runs, and bad input fails in one line before anything renders."""
@@ -13,11 +13,14 @@ import imageio.v3 as iio
 import numpy as np
 import pytest
 
-from clrender import Renderer, aov_io, cli, load_scene
-from clrender.batch import FrameTask, Outputs, scene_config
-from clrender.dataset import (export_documents, layout_cameras, load_dataset, parse_documents,
-                              quaternion_from_rotation, rotation_from_quaternion)
-from clrender.dataset_outputs import view_files
+from clrender import Renderer, load_scene
+from clrender.outputs import aov_io
+from clrender.cli import main as cli
+from clrender.batch.jobs import FrameTask, Outputs, scene_config
+from clrender.dataset.views import (
+    export_documents, layout_cameras, load_dataset, parse_documents, quaternion_from_rotation,
+    rotation_from_quaternion)
+from clrender.dataset.outputs import view_files
 
 REPO = Path(__file__).resolve().parents[1]
 DEMO = REPO / "scenes" / "demo.toml"

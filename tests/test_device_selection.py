@@ -13,9 +13,9 @@ from types import SimpleNamespace
 import pyopencl as cl
 import pytest
 
-from clrender import capabilities, device_probe, icd
-from clrender.device import (CPU_IMPLEMENTATION_ORDER, DeviceError, DeviceInfo, list_devices, match_devices,
-                             preference_order)
+from clrender.device import capabilities, probe as device_probe, icd
+from clrender.device.core import (
+    CPU_IMPLEMENTATION_ORDER, DeviceError, DeviceInfo, list_devices, match_devices, preference_order)
 
 CPU, GPU = int(cl.device_type.CPU), int(cl.device_type.GPU)
 
@@ -238,7 +238,7 @@ def test_list_devices_reports_implementation_version_origin_and_vector_widths():
 
 
 def test_the_devices_report_shows_implementation_version_and_vector_widths(monkeypatch):
-    from clrender import device_report
+    from clrender.device import report as device_report
     monkeypatch.setattr(device_probe, "probe_error", lambda d: None)
     monkeypatch.setattr(capabilities, "summary", lambda dev, tolerant=False: {"type": "CPU"})
     records = [device_report.device_record(d, "1:0") for d in (INTEL, PIP_POCL)]

@@ -1,4 +1,4 @@
-"""HDR environments, the host side (clrender/environment.py): OpenEXR and Radiance RGBE files,
+"""HDR environments, the host side (clrender/scene/environment.py): OpenEXR and Radiance RGBE files,
 validation, the direction convention's NumPy reference (`lookup`), the studio environment, and
 how scenes, TOML files, load_scene's default and the CLI get one. Also: a glTF texture file that
 is missing or unreadable is a warning, not an error. Nothing here renders but the last test."""
@@ -11,12 +11,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from clrender import cli
-from clrender.environment import (Environment, decode_rgbe, describe, directions_of_texels, encode_rgbe,
-                                  load_environment, lookup, read_exr, read_rgbe, studio_environment, write_rgbe)
+from clrender.cli import main as cli
+from clrender.scene.environment import (
+    Environment, decode_rgbe, describe, directions_of_texels, encode_rgbe, load_environment, lookup, read_exr,
+    read_rgbe, studio_environment, write_rgbe)
 from clrender.errors import SceneError
 from clrender.loaders import load_scene
-from clrender.scene import Scene
+from clrender.scene.model import Scene
 from gltf_files import primitive, write_gltf
 
 SHARED_ENVIRONMENTS = Path(__file__).resolve().parents[2] / "shared" / "environments"

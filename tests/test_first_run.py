@@ -10,8 +10,10 @@ import numpy as np
 import pytest
 
 import clrender
-from clrender import cli, device_probe, progress
-from clrender.device import Device, LazyKernel, lazy_kernels
+from clrender.cli import main as cli
+from clrender.device import probe as device_probe
+from clrender import progress
+from clrender.device.core import Device, LazyKernel, lazy_kernels
 
 REPO = Path(__file__).resolve().parent.parent
 
@@ -55,8 +57,8 @@ def test_a_render_builds_exactly_the_programs_of_the_passes_it_runs(device, fres
     expected = _pass_specs(r.pipeline, ran)
     # Where markers carry no time (Intel's runtime) the pass-time stamp kernel is built too, once per
     # device: by this test or an earlier one
-    stamp = clrender.timestamps.SPEC
-    assert stamp not in built or not clrender.capabilities.markers_carry_time(dev.cl_device)
+    stamp = clrender.device.timestamps.SPEC
+    assert stamp not in built or not clrender.device.capabilities.markers_carry_time(dev.cl_device)
     assert built - {stamp} == expected, (sorted(map(str, (built - {stamp}) ^ expected)))
     assert len(Device._programs) - int(stamp in built) == len(expected)
     # no BLEND triangle, no particles, no shadowed light: those passes built nothing
@@ -97,7 +99,7 @@ def test_launch_shapes_do_not_depend_on_the_image_size(device, monkeypatch):
 
 
 def test_the_probe_asks_only_the_device_that_will_be_used(monkeypatch, tmp_path):
-    from clrender.device import list_devices, preference_order
+    from clrender.device.core import list_devices, preference_order
     devices = list_devices()
     if not devices:
         pytest.skip("no OpenCL device")
@@ -115,8 +117,8 @@ def test_the_probe_asks_only_the_device_that_will_be_used(monkeypatch, tmp_path)
 
 
 def test_a_failing_default_device_falls_back_with_one_warning(monkeypatch, tmp_path):
-    from clrender.device import DeviceInfo
-    real = [d for d in clrender.device.list_devices() if not d.is_simulator]
+    from clrender.device.core import DeviceInfo
+    real = [d for d in clrender.device.core.list_devices() if not d.is_simulator]
     if not real:
         pytest.skip("no OpenCL device")
     broken = DeviceInfo("9:9", "Broken Platform", "broken cpu", real[0].cl_device)
@@ -132,13 +134,13 @@ def test_a_failing_default_device_falls_back_with_one_warning(monkeypatch, tmp_p
     monkeypatch.setattr(device_probe, "_ask_child", lambda info: "driver crashed")
     monkeypatch.setattr(device_probe, "_answers", {})
     monkeypatch.setenv("CLRENDER_CACHE_DIR", str(tmp_path / "again"))
-    with pytest.raises(clrender.device.DeviceError, match="no OpenCL device runs clrender's kernels"):
+    with pytest.raises(clrender.device.core.DeviceError, match="no OpenCL device runs clrender's kernels"):
         device_probe.default_device_info()
 
 
 def test_a_probe_child_that_fails_is_one_line(monkeypatch, tmp_path):
     """A real child for a device that is not there: its last line is the reason, the caller lives."""
-    from clrender.device import DeviceInfo, list_devices
+    from clrender.device.core import DeviceInfo, list_devices
     devices = list_devices()
     if not devices:
         pytest.skip("no OpenCL device")
@@ -181,7 +183,7 @@ def test_a_build_error_names_the_program_and_device(device, tmp_path, monkeypatc
     (kernels / "broken.cl").write_text("kernel void broken(global int* x) { x[0] = undefined_name; }\n")
     monkeypatch.setattr(clrender.device, "kernels_dir", lambda: kernels)
     dev = Device.get(device.id)
-    with pytest.raises(clrender.device.DeviceError) as info:
+    with pytest.raises(clrender.device.core.DeviceError) as info:
         dev.kernel("broken.cl", "broken").get_work_group_info
     message = str(info.value)
     assert "\n" not in message and "broken.cl" in message and dev.name in message
@@ -203,7 +205,7 @@ def test_clrender_warmup_builds_what_typical_scenes_run(device, capsys, fresh_pr
 def test_dask_workers_warm_up_when_they_start(device, fresh_programs):
     pytest.importorskip("distributed")
     import asyncio
-    from clrender.dask_plugin import WarmupPlugin
+    from clrender.batch.dask_plugin import WarmupPlugin
     dev = Device.get(device.id)
     before = len(dev.built)
     asyncio.run(WarmupPlugin(device.id, {"ssao": True}).setup(worker=None))

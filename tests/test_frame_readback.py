@@ -1,4 +1,4 @@
-"""Frames read their arrays from the device on first access (clrender/frame.py): the values are
+"""Frames read their arrays from the device on first access (clrender/render/frame.py): the values are
 those of a frame read at once, whatever is rendered after it, and only what is read is copied."""
 from __future__ import annotations
 
@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 
 from clrender import load_scene
-from clrender.frame import Frame, SnapshotPool
-from clrender.gbuffer import PLANES
+from clrender.render.frame import Frame, SnapshotPool
+from clrender.abi.gbuffer import PLANES
 from helpers import shared_file
 
 REPO = Path(__file__).resolve().parents[1]
@@ -123,10 +123,10 @@ def test_pickled_frame_carries_its_arrays(make_renderer, demo):
 
 
 def test_host_arrays_are_reused_only_when_nothing_references_them(make_renderer, demo):
-    """Large reads land in host buffers reused across frames (clrender.frame.HostArrays: no fresh
+    """Large reads land in host buffers reused across frames (clrender.render.frame.HostArrays: no fresh
     pages to fault in every frame), but never while any array made from one is alive: a view kept
     from frame A (derived, so its base is the buffer itself) keeps A's values after B is read."""
-    from clrender.frame import HOST_ARRAYS, HostArrays
+    from clrender.render.frame import HOST_ARRAYS, HostArrays
     r = make_renderer(800, 600)                           # colour: 5.8 MB, above HostArrays.MIN_BYTES
     cam = demo.camera
     a = r.render(demo, cam)

@@ -6,8 +6,9 @@ from pathlib import Path
 
 import pytest
 
-from clrender import cli, load_scene
-from clrender.pipeline import HOST_PHASES, NOT_PASS_MS, pass_ms
+from clrender.cli import main as cli
+from clrender import load_scene
+from clrender.render.pipeline import HOST_PHASES, NOT_PASS_MS, pass_ms
 
 REPO = Path(__file__).resolve().parents[1]
 

@@ -1,4 +1,4 @@
-"""Frame ranges, output patterns and the manifest (clrender.frames, clrender.manifest): no device."""
+"""Frame ranges, output patterns and the manifest (clrender.batch.frames, clrender.batch.manifest): no device."""
 from __future__ import annotations
 
 import json
@@ -6,8 +6,8 @@ import os
 
 import pytest
 
-from clrender import frames
-from clrender.manifest import Manifest, manifest_folder
+from clrender.batch import frames
+from clrender.batch.manifest import Manifest, manifest_folder
 
 
 @pytest.mark.parametrize("text, expected", [

@@ -463,7 +463,7 @@ def test_rgbe_header_size_is_checked_before_allocating(tmp_path, monkeypatch, re
     """A Radiance file whose resolution line claims far more pixels than its bytes can hold is refused
     before the image is allocated (the reader allocated H x W x 4 bytes first: 7 GB for a 100-byte file)."""
     import tracemalloc
-    from clrender.environment import read_rgbe
+    from clrender.scene.environment import read_rgbe
     from clrender.errors import SceneError
     monkeypatch.setenv("CLRENDER_MAX_MEMORY", "64M")
     path = tmp_path / "big.hdr"
@@ -517,7 +517,7 @@ def test_gltf_type_confusion_names_the_field(tmp_path, edit, words):
 def test_environment_radiance_beyond_float32_is_refused(intensity, peak):
     """intensity x the brightest pixel is what the device adds up in float32: 1e308 (finite as a
     Python float) rendered an image of inf; refused with one line naming the source."""
-    from clrender.environment import Environment
+    from clrender.scene.environment import Environment
     from clrender.errors import SceneError
     pixels = np.ones((4, 8, 3), np.float32)
     pixels[1, 2] = peak
@@ -556,7 +556,7 @@ def test_obj_mtl_errors_name_the_file(tmp_path, obj, mtl, words):
 def test_rgbe_messages_do_not_echo_a_garbled_header(tmp_path, header):
     """A bit flip in the resolution line made it run into the pixel bytes: the message quoted 1,300
     characters of binary; now a short excerpt."""
-    from clrender.environment import read_rgbe
+    from clrender.scene.environment import read_rgbe
     from clrender.errors import SceneError
     path = tmp_path / "garbled.hdr"
     if header.startswith(b"FORMAT="):

@@ -7,9 +7,9 @@ import numpy as np
 import pyopencl.array as cla
 import pytest
 
-from clrender import gbuffer as gb
-from clrender import structs
-from clrender.device import Device, kernels_dir
+from clrender.abi import gbuffer as gb
+from clrender.abi import structs
+from clrender.device.core import Device, kernels_dir
 
 
 @pytest.fixture

@@ -12,7 +12,7 @@ import pytest
 
 import clrender
 from clrender import Scene, SceneError, load_scene
-from clrender.renderer import RenderConfig
+from clrender.render.renderer import RenderConfig
 from gltf_files import QUAD_POSITIONS, primitive, write_gltf
 
 BAD_VALUES = [np.nan, np.inf, -np.inf, 1e31, -3e38]

@@ -1,4 +1,4 @@
-"""Compressed and quantized glTF (clrender.loaders.gltf_compression, docs/compression.md).
+"""Compressed and quantized glTF (clrender.loaders.gltf.compression, docs/compression.md).
 
 Round trips of `compressed_files.sheet()` (integral positions in grid units, so exact encoders give
 back the very same floats): files written here with DracoPy, the meshoptimizer binding and int16
@@ -27,7 +27,7 @@ from gltf_files import primitive, write_gltf
 
 import clrender
 from clrender import Camera, SceneError
-from clrender.loaders import gltf_compression
+from clrender.loaders.gltf import compression as gltf_compression
 
 # The `test` extra installs the encoders; CI (CI=true) fails rather than skips without them.
 if os.environ.get("CI", "").lower() in ("1", "true"):

@@ -2,7 +2,7 @@
 
 Every glTF 2.0 material property (+ KHR_materials_emissive_strength, KHR_materials_unlit,
 KHR_texture_transform) into `Material`, texture sRGB flags, COLOR_0 / TEXCOORD_n / TANGENT into
-`Scene.colors / extra_uvs / tangents`, tangent generation (clrender.tangents) against exact
+`Scene.colors / extra_uvs / tangents`, tangent generation (clrender.scene.tangents) against exact
 expectations and against the tangents sample files were exported with, one warning per file and
 unsupported feature, and the errors bad input gets. Files are written by tests/gltf_files.py;
 expectations are computed here from the arrays the test wrote. No rendering.
@@ -25,8 +25,8 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from gltf_files import QUAD_INDICES, QUAD_NORMALS, QUAD_POSITIONS, QUAD_UVS, primitive, write_gltf  # noqa: E402
 
 from clrender.loaders import load_scene  # noqa: E402
-from clrender.scene import Material, SceneError, UVTransform  # noqa: E402
-from clrender.tangents import generate_tangents  # noqa: E402
+from clrender.scene.model import Material, SceneError, UVTransform  # noqa: E402
+from clrender.scene.tangents import generate_tangents  # noqa: E402
 
 
 # These tests check the report's Blinn-Phong mapping of metallic-roughness materials
@@ -296,7 +296,7 @@ def compare_with_file_tangents(path: Path, meshes=None):
     file's made orthogonal to the normal, whether w agrees) over the vertices that have a tangent
     frame at all (a triangle with non-zero uv area and a file tangent not parallel to N), and the
     number of vertices left out."""
-    from clrender.loaders.gltf_document import load_document
+    from clrender.loaders.gltf.document import load_document
 
     doc = load_document(path)
     angles, agree, left_out = [], [], 0
@@ -337,7 +337,7 @@ def shared_scene(rel: str) -> Path:
 
 
 # (file, mesh filter, vertices compared, left out, median, p95, max angle bounds in degrees, w agreement)
-# The numbers measured are in clrender/tangents.py's docstring; the bounds sit just above them.
+# The numbers measured are in clrender/scene/tangents.py's docstring; the bounds sit just above them.
 MIKK_FILES = [
     # Khronos Blender exporter (MikkTSpace): exact up to float rounding
     ("khronos-AlphaBlendModeTest/AlphaBlendModeTest.gltf", None, 137, 0, 0.001, 0.02, 0.02, 1.0),

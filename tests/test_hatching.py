@@ -1,5 +1,5 @@
 """Hatching (report IV.3, Praun et al. 2001): the tonal art maps' nesting and tones
-(clrender/tam.py), and kernels/hatching.cl through the Renderer against an independent NumPy
+(clrender/passes/tam.py), and kernels/hatching.cl through the Renderer against an independent NumPy
 version of its per-pixel formula (docs/post.md's LDR chain, "Hatching").
 
 The image must read as a drawing: pixels without geometry (triangle id -1) are the white paper,
@@ -17,8 +17,9 @@ import numpy as np
 import pytest
 
 import clrender
-from clrender import Camera, Material, Scene, tam
-from clrender.gbuffer import linear_to_srgb8
+from clrender import Camera, Material, Scene
+from clrender.passes import tam
+from clrender.abi.gbuffer import linear_to_srgb8
 from clrender.passes.hatching import mip_levels
 from reference import aa
 from reference.shading import tonemap_curve

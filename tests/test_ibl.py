@@ -13,8 +13,8 @@ import numpy as np
 import pyopencl as cl
 import pytest
 
-from clrender import capabilities
-from clrender.device import Device
+from clrender.device import capabilities
+from clrender.device.core import Device
 from clrender.passes import ibl
 from clrender.passes.base import launch_1d
 

@@ -11,10 +11,10 @@ import numpy as np
 import pytest
 
 from clrender import RenderConfig, Renderer
-from clrender.camera import Camera
-from clrender.environment import directions_of_texels, lookup
-from clrender.material import Material
-from clrender.scene import Scene
+from clrender.scene.camera import Camera
+from clrender.scene.environment import directions_of_texels, lookup
+from clrender.scene.material import Material
+from clrender.scene.model import Scene
 from reference.brdf_reference import brdf
 from reference.geometry import uv_sphere
 

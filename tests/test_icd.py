@@ -1,4 +1,4 @@
-"""Registering pip-installed OpenCL implementations (clrender/icd.py) and reporting ICD files whose
+"""Registering pip-installed OpenCL implementations (clrender/device/icd.py) and reporting ICD files whose
 library does not load. The subprocess tests run `clrender devices --no-probe` (a platform query,
 no kernel builds: about 2 s each) in a fresh process, since the loader reads $OCL_ICD_VENDORS once."""
 from __future__ import annotations
@@ -13,7 +13,7 @@ from pathlib import Path
 
 import pytest
 
-from clrender import icd
+from clrender.device import icd
 from helpers import skip_or_fail
 
 REPO = Path(__file__).resolve().parents[1]
@@ -184,7 +184,7 @@ def test_pip_pocls_own_icd_file_is_not_reported(monkeypatch, tmp_path):
 
 
 def test_no_device_error_names_the_broken_icds(monkeypatch, tmp_path):
-    from clrender import device
+    from clrender.device import core as device
     monkeypatch.setenv(icd.ENV_VENDORS, str(_broken_vendors(tmp_path)))
     with pytest.raises(device.DeviceError) as info:
         device.match_devices("anything", devices=[])
@@ -210,7 +210,7 @@ def test_devices_command_reports_broken_icds_and_lists_the_rest(tmp_path):
 def test_a_platform_whose_devices_cannot_be_listed_is_named_once(monkeypatch):
     import pyopencl as cl
 
-    from clrender import device
+    from clrender.device import core as device
 
     class Broken:
         name = "Broken Platform"

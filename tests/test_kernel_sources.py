@@ -41,7 +41,7 @@ def test_no_gpu_only_constructs(name):
 @pytest.mark.parametrize("name", SOURCES)
 def test_builds_alone_with_defaults_and_fits_local_memory(device, name):
     import pyopencl as cl
-    from clrender.device import Device
+    from clrender.device.core import Device
     dev = Device.get(device)
     program = dev.program(name)
     for kernel in program.all_kernels():

@@ -1,4 +1,4 @@
-"""TOML keyframe animation (clrender/keyframes.py): camera keys, the camera orbit and light keys
+"""TOML keyframe animation (clrender/scene/keyframes.py): camera keys, the camera orbit and light keys
 against hand-computed values, absolute posing, the errors, and renders of a posed scene (depth
 bit-identical to the same camera placed directly; velocity of a moving and of a fixed camera)."""
 from __future__ import annotations
@@ -12,9 +12,10 @@ import pytest
 
 from helpers import assert_scene_error
 
-from clrender import Camera, load_scene, structs
+from clrender import Camera, load_scene
+from clrender.abi import structs
 from clrender.errors import SceneError
-from clrender.keyframes import KeyframeAnimation, LightKey, LightTrack
+from clrender.scene.keyframes import KeyframeAnimation, LightKey, LightTrack
 
 SCENES = Path(__file__).resolve().parent.parent / "scenes"
 

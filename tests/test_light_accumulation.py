@@ -23,7 +23,9 @@ import pytest
 
 from helpers import SHADING_TOL
 import clrender
-from clrender import Camera, memory, structs
+from clrender import Camera
+from clrender.render import memory
+from clrender.abi import structs
 from reference import shading as ref
 from test_lighting import (AMBIENT, BRUTE, CAMERA, lit_scene, reference_scene_lights, render, room_scene,
                            light_array, sector_bounding_sphere)
@@ -52,7 +54,7 @@ def assert_close_to(got, expect, what):
 
 @pytest.mark.parametrize("mode", MODES)
 def test_demo_scene_matches_tiled(make_renderer, device, mode):
-    from clrender.check import REPO_SCENES
+    from clrender.tools.check import REPO_SCENES
     scene = clrender.load_scene(REPO_SCENES / "demo.toml")
     w, h = 200, 120
     tiled = render(make_renderer, device, "demo", scene, scene.camera, w, h, **opts("tiled", 32))
@@ -348,7 +350,7 @@ def test_memory_estimate_covers_the_new_buffers(make_renderer, device, mode):
 
 
 def test_cli_and_toml_reach_render_config(tmp_path, device, monkeypatch):
-    from clrender import cli
+    from clrender.cli import main as cli
     from helpers import record_render_configs
     seen = record_render_configs(monkeypatch)
     obj = tmp_path / "quad.obj"

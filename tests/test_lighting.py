@@ -18,7 +18,8 @@ import pytest
 
 from helpers import SHADING_TOL
 import clrender
-from clrender import Camera, Material, Scene, structs
+from clrender import Camera, Material, Scene
+from clrender.abi import structs
 from reference import shading as ref
 from reference.geometry import uv_sphere
 

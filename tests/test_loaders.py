@@ -22,9 +22,9 @@ import pytest
 
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
-from clrender.camera import Camera  # noqa: E402
+from clrender.scene.camera import Camera  # noqa: E402
 from clrender.loaders import load_scene  # noqa: E402
-from clrender.scene import Material, SceneError  # noqa: E402
+from clrender.scene.model import Material, SceneError  # noqa: E402
 from helpers import assert_scene_error, shared_file
 
 REPO = Path(__file__).resolve().parents[1]
@@ -188,8 +188,8 @@ def test_khronos_alpha_blend_mode_materials():
     texture alpha from it; the factor alpha is base_color[3], 1 here)."""
     import imageio.v3 as iio
 
-    from clrender import structs
-    from clrender.scene_gpu import material_records
+    from clrender.abi import structs
+    from clrender.render.scene_upload import material_records
 
     path = shared_file("khronos-AlphaBlendModeTest/AlphaBlendModeTest.gltf")
     scene = load_scene(path)
@@ -635,7 +635,7 @@ def test_metallic_roughness_mapping(tmp_path):
 def test_gltf_blend_factor_and_texture_alpha(tmp_path):
     """glTF BLEND: the baseColorFactor alpha goes to base_color[3], the texture keeps its alpha
     channel (sampled on the device), and a TOML opacity multiplies the alpha the device gets."""
-    from clrender.scene_gpu import material_records
+    from clrender.render.scene_upload import material_records
 
     rgba = np.zeros((2, 2, 4), np.uint8)
     rgba[..., :3] = 255

@@ -1,4 +1,4 @@
-"""glTF geometry without trimesh (clrender/loaders/gltf_geometry.py): the numpy path loads every
+"""glTF geometry without trimesh (clrender/loaders/gltf/geometry.py): the numpy path loads every
 shared glTF scene, and files with every node-transform and primitive form, into exactly the arrays
 the trimesh path (CLRENDER_GLTF_TRIMESH=1, the loader before) does."""
 from __future__ import annotations
@@ -15,7 +15,7 @@ import pytest
 from gltf_files import QUAD_INDICES, QUAD_POSITIONS, primitive, write_gltf
 
 from clrender.loaders import load_scene
-from clrender.loaders import gltf_geometry as gg
+from clrender.loaders.gltf import geometry as gg
 
 SHARED = Path(__file__).resolve().parents[2] / "shared" / "scenes"
 SHARED_GLTF = sorted(p for p in SHARED.glob("*/*.gl*") if p.suffix in (".gltf", ".glb")) if SHARED.is_dir() else []
@@ -94,8 +94,8 @@ def test_node_transforms_and_primitive_forms_load_as_through_trimesh(tmp_path, m
     assert a.triangle_count == b.triangle_count > 10 and a.camera is not None
     assert_same_scene(a, b, path)
     # the float64 world matrices themselves, of every node and primitive frame
-    from clrender.loaders.gltf import _traversal
-    from clrender.loaders.gltf_document import load_document
+    from clrender.loaders.gltf.assemble import _traversal
+    from clrender.loaders.gltf.document import load_document
     doc = load_document(path)
     order = _traversal(doc)
     mine, ref = gg.NumpyGeometry(doc, order), gg.TrimeshGeometry(doc, order)

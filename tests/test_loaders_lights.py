@@ -22,9 +22,9 @@ import pytest
 
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
-from clrender import structs  # noqa: E402
+from clrender.abi import structs  # noqa: E402
 from clrender.loaders import load_scene  # noqa: E402
-from clrender.scene import Scene, SceneError  # noqa: E402
+from clrender.scene.model import Scene, SceneError  # noqa: E402
 from helpers import assert_scene_error
 
 REPO = Path(__file__).resolve().parents[1]

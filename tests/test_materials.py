@@ -5,7 +5,7 @@ tests/reference/gltf_writer.py) and on Khronos samples in ../shared/scenes (skip
 Units of the per-pixel comparisons (the G-buffer quantizes every field; "codes" are its 8-bit
 steps):
   * albedo, emissive: sRGB8 codes (the reference's value encoded with
-    clrender.gbuffer.linear_to_srgb8; the Frame's decoded value re-encodes exactly), worst channel;
+    clrender.abi.gbuffer.linear_to_srgb8; the Frame's decoded value re-encodes exactly), worst channel;
   * specular intensity, occlusion: unorm8 codes (|Δ|·255);
   * specular power: codes of round(255·log2(p)/11), i.e. |Δlog2 p|·255/11;
   * normal: degrees between the Frame's and the reference's normal (octahedral 2×12 bits).
@@ -42,8 +42,8 @@ from conftest import blinn_phong_renderer_fixture
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
 from clrender import Camera, Material, Scene  # noqa: E402
-from clrender.gbuffer import SPEC_POWER_LOG2_MAX, linear_to_srgb8  # noqa: E402
-from clrender.scene import Texture, UVTransform  # noqa: E402
+from clrender.abi.gbuffer import SPEC_POWER_LOG2_MAX, linear_to_srgb8  # noqa: E402
+from clrender.scene.model import Texture, UVTransform  # noqa: E402
 from reference import material as ref  # noqa: E402
 from reference.gltf_writer import CLAMP, MIRROR, REPEAT, write_gltf  # noqa: E402
 from helpers import shared_file  # noqa: E402
@@ -280,7 +280,7 @@ def test_reference_metallic_roughness_numbers():
     # r = 1: 2/1 - 2 = 0 -> clamped to 1; r = 0.5: alpha = 0.25 -> 2/0.0625 - 2 = 30; r = 0.1, 0: capped
     np.testing.assert_allclose(sp, [1.0, 30.0, 2048.0, 2048.0])
     # the host helper (clrender.scene) agrees with the reference for the factor-only case
-    from clrender.scene import metallic_roughness_to_blinn_phong
+    from clrender.scene.model import metallic_roughness_to_blinn_phong
     rng = np.random.default_rng(3)
     for _ in range(20):
         base, m, r = rng.random(3), rng.random(), rng.random()

@@ -2,7 +2,7 @@
 
 `Frame.stats["device_bytes"]` is the sum of the device buffers clrender holds for the frame (passes,
 pipeline constants, scene upload), broken down in `stats["device_bytes_by_owner"]`; it must agree
-with `clrender.memory.estimate()` (used to refuse frames that cannot fit) and stay constant over
+with `clrender.render.memory.estimate()` (used to refuse frames that cannot fit) and stay constant over
 many renders, and the process's resident memory must not grow (on PoCL device memory is host
 memory, so RSS covers the device buffers too).
 """
@@ -15,8 +15,10 @@ import numpy as np
 import pytest
 
 import clrender
-from clrender import Scene, Texture, memory, scene_gpu, structs, texture_pool
-from clrender import gbuffer as layout
+from clrender import Scene, Texture
+from clrender.render import memory, scene_upload as scene_gpu, texture_pool
+from clrender.abi import structs
+from clrender.abi import gbuffer as layout
 from reference.geometry import uv_sphere
 from reference.raster import pixel_exact_camera
 
@@ -70,7 +72,7 @@ def test_device_bytes_reported_and_estimated(make_renderer):
     est = memory.estimate(w, h, make_renderer(w, h).config, scene)["total"]
     assert 0.98 * known <= est <= 1.02 * known + 4096, (
         f"memory.estimate() = {est} but the known passes hold {known} bytes ({by_owner}); "
-        f"update clrender/memory.py when a pass's buffers change")
+        f"update clrender/render/memory.py when a pass's buffers change")
     # A larger frame holds proportionally more.
     big = make_renderer(2 * w, 2 * h).render(scene, camera=pixel_exact_camera()).stats
     assert big["device_bytes_by_owner"]["gbuffer"] == 4 * by_owner["gbuffer"]

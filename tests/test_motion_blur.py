@@ -16,7 +16,7 @@ from helpers import pixel_far_points
 
 import clrender
 from clrender import Camera, Material, Scene
-from clrender.scene import SceneError
+from clrender.scene.model import SceneError
 
 W, H = 96, 64
 FOV = 50.0
@@ -260,8 +260,8 @@ def test_pass_on_synthetic_velocity_matches_reference(device):
     motions meeting, a vector beyond the MAX_RADIUS cap, inf/NaN halves (static), image borders,
     three depth layers and background (+inf), equal lengths in different directions (the ties)."""
     import pyopencl.array as cla
-    from clrender import gbuffer as layout
-    from clrender.device import Device
+    from clrender.abi import gbuffer as layout
+    from clrender.device.core import Device
     from clrender.passes import Resources
     from clrender.passes.motion_blur import MotionBlurPass
     dev = Device.get(device)

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 import clrender
-import clrender.gbuffer
+import clrender.abi.gbuffer
 from clrender import Camera, Material, Scene, Texture
 from reference.raster import rasterize
 
@@ -91,7 +91,7 @@ def test_alpha_mask_and_resolve(device, capfd):
     assert set(row[5:7]) <= {2, 3}, row
     assert set(row[9:11]) <= {0, 1}, row
     quad = np.isin(ids, (0, 1))
-    np.testing.assert_allclose(frame.albedo[quad], np.broadcast_to(clrender.gbuffer.srgb_to_linear_lut()[200] * np.array([1, 0, 0]), frame.albedo[quad].shape), atol=0.01)
+    np.testing.assert_allclose(frame.albedo[quad], np.broadcast_to(clrender.abi.gbuffer.srgb_to_linear_lut()[200] * np.array([1, 0, 0]), frame.albedo[quad].shape), atol=0.01)
     np.testing.assert_allclose(frame.albedo[np.isin(ids, (2, 3))][0], (0.2, 0.4, 0.6), atol=0.01)
     np.testing.assert_allclose(frame.normal[quad], np.broadcast_to((0, 0, 1), frame.normal[quad].shape), atol=1e-3)
     assert_no_device_diagnostics(capfd)
@@ -238,7 +238,7 @@ def transparency_expected(frame, scene, layers=None, shadows=True):
     from reference import shading as ref_shading
     from reference import transparency as ref
     from reference.shadow_rays import occluded
-    spot = int(np.flatnonzero(scene.lights["type"] == clrender.structs.LIGHT_SPOT)[0])
+    spot = int(np.flatnonzero(scene.lights["type"] == clrender.abi.structs.LIGHT_SPOT)[0])
 
     def light_visibility(points, i):
         if i != spot:
@@ -355,7 +355,7 @@ def test_refraction_kernels(device, capfd):
 def test_hatching_kernel(device, capfd, scale):
     """hatching.cl on a 24x16 frame (level 0, and the trilinear levels 0-1), against the NumPy
     formula on the tone-mapped Frame.color."""
-    from clrender.gbuffer import linear_to_srgb8
+    from clrender.abi.gbuffer import linear_to_srgb8
     from reference.shading import tonemap_curve
     from test_hatching import COLOURED_CAMERA, assert_matches_expected, coloured_scene, hatching_reference
     frame = clrender.Renderer(TW, TH, device=device.id, tile_size=8, light_tile_size=8, hatching=True,
@@ -474,7 +474,7 @@ def test_material_feature_kernels(device, capfd):
     normal, occlusion and emissive textures read through a texture transform and TEXCOORD_1, with
     vertex colours, next to an unlit quad; deferred and light-indexed give the same bits, and the
     decoded G-buffer equals the documented mapping (docs/materials.md) of the constant texels."""
-    from clrender.scene import UVTransform, metallic_roughness_to_blinn_phong
+    from clrender.scene.model import UVTransform, metallic_roughness_to_blinn_phong
 
     def const(rgba, srgb):
         return Texture("c", np.broadcast_to(np.asarray(rgba, np.uint8), (2, 2, 4)).copy(), srgb=srgb)
@@ -525,7 +525,7 @@ def test_material_feature_kernels(device, capfd):
     scene.textures = textures + [const((255, 255, 255, 255), True)]
     scene.materials = [replace(lit, base_color_texture=4, metallic_roughness_uv=UVTransform(),
                                normal_uv=UVTransform()), unlit]
-    from clrender.scene_gpu import device_materials
+    from clrender.render.scene_upload import device_materials
     flags = device_materials(scene)[1]["flags"][0]
     assert flags & (15 << 5) == 15 << 5, "every slot must share the base colour's footprint"
     shared = clrender.Renderer(12, 12, **opts).render(scene, cam)
@@ -558,7 +558,7 @@ def _gltf_spheres_with_environment():
                              Material("glass", (0.6, 0.8, 1.0, 1), metallic=0.0, roughness=0.1, opacity=0.5),
                              Material("floor", (0.5, 0.5, 0.5, 1))])
     scene.add_point_light((0, 1.5, -1.5), (4, 4, 4), 6.0)
-    scene.lights["falloff"][-1] = clrender.structs.FALLOFF_INVERSE_SQUARE
+    scene.lights["falloff"][-1] = clrender.abi.structs.FALLOFF_INVERSE_SQUARE
     d = np.random.default_rng(4).uniform(0.2, 1.5, (8, 16, 3)).astype(np.float32)
     d[1, 5] = 30.0                                          # a small bright sun
     scene.set_environment(d, rotation_deg=40.0)

@@ -1,6 +1,6 @@
 """OpenCV pinhole cameras (Camera.from_opencv / to_opencv) and the asymmetric frustum in every pass.
 
-Truth: a world point X lands at K(RX + t) / z with pixel centres at integer + 0.5 (clrender/camera.py);
+Truth: a world point X lands at K(RX + t) / z with pixel centres at integer + 0.5 (clrender/scene/camera.py);
 the crop test renders a centred camera at twice the size and an off-centre one seeing a window of
 it: the window's rays are the same rays, so every pass that forgot the principal point (light
 culling, light quads, stencil, the variants' lighting, the environment background) shows up as a
@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from clrender import Camera, Scene
-from clrender.scene import SceneObject
+from clrender.scene.model import SceneObject
 from reference.geometry import uv_sphere
 from reference import shading as ref
 
@@ -241,7 +241,7 @@ def test_position_is_the_depth_on_the_pixel_ray(make_renderer, kind):
 
 
 def test_moved_opencv_camera_keeps_its_k():
-    from clrender.camera import with_overrides
+    from clrender.scene.camera import with_overrides
     K = np.array([[300.0, 0, 100], [0, 280, 70], [0, 0, 1]])
     cam = Camera.from_opencv(K, np.eye(3), (0, 0, 5), 320, 240)
     moved = with_overrides(cam, np.array([[-1, -1, -1], [1, 1, 1.0]]), eye=(0, 0, 8))

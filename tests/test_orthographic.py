@@ -476,8 +476,8 @@ def test_ortho_cascades_fit_slabs_of_the_view_box():
     each map fits its slab of the view box -- a box, not a frustum widening with depth: every
     corner of the slab lies in the map, and the map is no larger than the slab needs (but for the
     PCF border, the 8/7 that lets a snapped centre cover it and one 2^(1/8) ladder step)."""
-    from clrender import shadow_views
-    from clrender.scene import Sun
+    from clrender.passes import shadow_views
+    from clrender.scene.model import Sun
     cam = Camera.orthographic((7.0, 6.0, 9.0), (0.0, 0.5, 0.0), xmag=3.0, ymag=2.0, near=0.1, far=40)
     aspect = 4 / 3
     bounds = ((-50.0, -1.0, -50.0), (50.0, 4.0, 50.0))      # much wider than the view: no clamping
@@ -592,7 +592,7 @@ def _toml(tmp_path, camera: str) -> Path:
 def test_toml_orthographic_camera(tmp_path):
     cam = clrender.load_scene(_toml(tmp_path, 'projection = "orthographic"\nxmag = 2\nymag = 1.5\nnear = 0\n')).camera
     assert cam.is_orthographic and (cam.xmag, cam.ymag, cam.near, cam.far) == (2.0, 1.5, 0.0, 100.0)
-    from clrender.scene import SceneError
+    from clrender.scene.model import SceneError
     for text, message in (('projection = "orthographic"\nymag = 1\n', "needs 'xmag'"),
                           ('projection = "orthographic"\nxmag = 1\nymag = 0\n', "must be > 0"),
                           ('projection = "orthographic"\nxmag = 1\nymag = 1\nfov_y_deg = 40\n', "fov_y_deg applies"),
@@ -605,7 +605,7 @@ def test_toml_orthographic_camera(tmp_path):
 
 
 def test_cli_ortho_flag(tmp_path, capsys):
-    from clrender import cli
+    from clrender.cli import main as cli
     path = _toml(tmp_path, 'projection = "orthographic"\nxmag = 2\nymag = 1.5\n')
     assert cli.main(["info", str(path), "--json"]) == 0
     info = json.loads(capsys.readouterr().out)

@@ -9,8 +9,9 @@ import numpy as np
 import pytest
 
 import clrender
-from clrender import aov_io, cli
-from clrender.gbuffer import linear_to_srgb8
+from clrender.outputs import aov_io
+from clrender.cli import main as cli
+from clrender.abi.gbuffer import linear_to_srgb8
 
 ROOT = Path(__file__).resolve().parent.parent
 DEMO = ROOT / "scenes" / "demo.toml"

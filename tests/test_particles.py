@@ -73,7 +73,7 @@ def test_particles_are_deterministic_and_move(make_renderer, particle_scene):
 
 
 def test_particles_identical_on_every_device(particle_scene):
-    from clrender.device_probe import select_devices
+    from clrender.device.probe import select_devices
     results = {d.label: clrender.Renderer(8, 8, device=d.id).lights_at(particle_scene, 7.125).tobytes()
                for d in select_devices("all")}
     assert len(set(results.values())) == 1, list(results)

@@ -1,5 +1,5 @@
 """Per-pass milliseconds are real on every implementation. They come from profiling timestamps
-around each pass (clrender/timestamps.py): marker events where the device stamps markers, a
+around each pass (clrender/device/timestamps.py): marker events where the device stamps markers, a
 one-work-item kernel launch where it does not (Intel's CPU runtime gives markers start = end = 0,
 so its pass times all read 0.00 ms while its frames took tens of ms)."""
 from __future__ import annotations
@@ -23,14 +23,14 @@ def stamps(request, monkeypatch):
     """The device's own choice, and the kernel-launch stamps forced (so every device in CI runs the
     path Intel's runtime takes)."""
     if request.param == "kernel stamps":
-        from clrender import capabilities
+        from clrender.device import capabilities
         monkeypatch.setattr(capabilities, "markers_carry_time", lambda dev: False)
     return request.param
 
 
 def test_a_stamp_carries_device_time(device, stamps):
-    from clrender import timestamps
-    from clrender.device import Device
+    from clrender.device import timestamps
+    from clrender.device.core import Device
     dev = Device.get(device)
     first, second = timestamps.stamp(dev), timestamps.stamp(dev)
     second.wait()

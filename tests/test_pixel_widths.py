@@ -6,7 +6,7 @@ normal-mapped G-buffer normals by a 12-bit code; the kernels' RSQRT (kernels/vec
 import numpy as np
 
 import clrender
-from clrender import check
+from clrender.tools import check
 
 # the G-buffer and what is computed from it with +, -, *, / and sqrt only; not the shading, whose
 # library functions (pow, exp, sin, ...) may round differently at each width

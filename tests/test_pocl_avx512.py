@@ -29,7 +29,7 @@ ROOT = Path(__file__).resolve().parents[1]
 
 def _pip_pocl():
     """(id, name) of pip's PoCL 3.0 CPU device (LLVM 14, bundled with pyopencl), else skip."""
-    from clrender.device import list_devices
+    from clrender.device.core import list_devices
     for d in list_devices():
         if "PoCL 3.0" in d.cl_device.platform.version and "LLVM 14" in d.cl_device.platform.version:
             return d.id, d.name
@@ -92,7 +92,7 @@ def test_pip_pocl_probe_passes_on_zen4(zen4_env):
     env = dict(zen4_env, CLRENDER_PROBE_CHILD="1")
     start = time.monotonic()
     try:
-        out = subprocess.run([sys.executable, "-m", "clrender.probe_child", device_id, name], env=env,
+        out = subprocess.run([sys.executable, "-m", "clrender.tools.probe_child", device_id, name], env=env,
                              capture_output=True, text=True, timeout=150)
     except subprocess.TimeoutExpired:
         pytest.fail("the probe child did not finish within 150 s (LLVM 14 looping on 16-wide vectors?)")

@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 
 from clrender import Renderer, load_scene
-from clrender.aov_io import LABEL_HEIGHT, contact_sheet, preview
-from clrender.cli import main
+from clrender.outputs.aov_io import LABEL_HEIGHT, contact_sheet, preview
+from clrender.cli.main import main
 
 WORM = Path(__file__).resolve().parents[1] / "scenes" / "worm.gltf"
 W, H = 80, 45

@@ -24,9 +24,10 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from helpers import SHADING_TOL_RANDOM
-from clrender import Camera, Material, Scene, structs
-from clrender.gbuffer import linear_to_srgb8
-from clrender.scene import vertex_normals
+from clrender import Camera, Material, Scene
+from clrender.abi import structs
+from clrender.abi.gbuffer import linear_to_srgb8
+from clrender.scene.model import vertex_normals
 from reference import shading as ref_shading
 from reference.raster import rasterize
 from test_raster import make_soup, soups

@@ -10,8 +10,8 @@ SIZES = (1, 7, 1023, 1024, 1025, 4096, 70001, 1024 * 1024 + 3)
 
 def run_scan(device, counts, size=None):
     import pyopencl.array as cla
-    from clrender.device import Device
-    from clrender.scan import prefix_sum_for
+    from clrender.device.core import Device
+    from clrender.device.scan import prefix_sum_for
     dev = Device.get(device)
     q = dev.queue
     c = cla.to_device(q, counts)
@@ -58,7 +58,7 @@ def test_multi_block_scan_is_simulator_clean(device, capfd):
 
 def test_scan_shape_follows_device_limits():
     from types import SimpleNamespace
-    from clrender.capabilities import SCAN_ITEMS, scan_shape
+    from clrender.device.capabilities import SCAN_ITEMS, scan_shape
 
     def dev(wg, local):
         return SimpleNamespace(max_work_group_size=wg, max_work_item_sizes=[wg, wg, wg], local_mem_size=local)

@@ -15,9 +15,10 @@ import time
 import numpy as np
 import pytest
 
-from clrender import Camera, SceneError, cli
+from clrender import Camera, SceneError
+from clrender.cli import main as cli
 from clrender.loaders import load_scene
-from clrender.loaders import gltf_geometry
+from clrender.loaders.gltf import geometry as gltf_geometry
 from gltf_files import primitive, write_gltf
 
 SEED = 34
@@ -237,8 +238,8 @@ def test_deeply_nested_toml_is_a_scene_error(tmp_path, depth):
 
 
 def test_deeply_nested_camera_file_and_manifest_are_one_line_errors(tmp_path):
-    from clrender import dataset
-    from clrender.manifest import Manifest
+    from clrender.dataset import views as dataset
+    from clrender.batch.manifest import Manifest
 
     deep = "[" * 100_000 + "]" * 100_000
     for name, text in (("cams.json", deep), ("cams.toml", "x = " + deep)):

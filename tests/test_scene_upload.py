@@ -1,4 +1,4 @@
-"""Incremental scene uploads (clrender/scene_gpu.py): between animation frames only the posed
+"""Incremental scene uploads (clrender/render/scene_upload.py): between animation frames only the posed
 geometry (positions, normals, tangents, triangles, previous positions) is written into the existing
 device buffers. Frames rendered that way are bit-identical to frames from a full upload, the texture
 pool is not re-sent on a pose-only change, and anything else still rebuilds the upload."""
@@ -13,8 +13,9 @@ from gltf_files import primitive
 from test_animation import cube, load_animated
 
 import clrender
-from clrender import Camera, Material, scene_gpu
-from clrender.scene import SceneError, Texture
+from clrender import Camera, Material
+from clrender.render import scene_upload as scene_gpu
+from clrender.scene.model import SceneError, Texture
 
 S45 = np.sqrt(0.5)
 

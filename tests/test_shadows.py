@@ -8,7 +8,7 @@ import pytest
 
 import clrender
 from clrender import Camera, Material, Scene, Texture
-from clrender.scene import SceneError
+from clrender.scene.model import SceneError
 from reference.geometry import uv_sphere
 from reference.shadow_rays import has_embree, near_edge, visibility
 from bench.common import SPONZA, SPONZA_CAMERA
@@ -276,13 +276,13 @@ def test_atlas_packs_many_sizes_and_fails_loudly(make_renderer):
 
 def test_atlas_beyond_device_memory_is_a_clear_error(device, monkeypatch):
     """The atlas is sized by the scene's lights at render time: checked before allocating."""
-    import clrender.memory
+    import clrender.render.memory
     scene = occluder_scene()
     scene.add_spot_light((1.0, 7.0, 3.0), SPOT["direction"], (5, 5, 5), 20, 30, 42, shadow=True,
                          shadow_map_size=1024)
     renderer = clrender.Renderer(W, H, device=device.id)     # its own: the limit applies after construction
-    monkeypatch.setattr(clrender.memory, "limits", lambda dev: (1 << 40, 1 << 20))
-    with pytest.raises(clrender.memory.DeviceMemoryError, match=r"shadow atlas .* needs 4194304 bytes"):
+    monkeypatch.setattr(clrender.render.memory, "limits", lambda dev: (1 << 40, 1 << 20))
+    with pytest.raises(clrender.render.memory.DeviceMemoryError, match=r"shadow atlas .* needs 4194304 bytes"):
         renderer.render(scene, CAMERA)
 
 
@@ -324,8 +324,8 @@ def test_sun_cascades_are_kept_when_the_camera_moves_less_than_their_grid(device
 def test_sun_cascades_cover_their_slices_for_random_cameras():
     """Host-side: for random perspective cameras, every corner of each cascade's slice of the view
     frustum (inside the scene's bounds) projects inside its map, with the PCF border to spare."""
-    from clrender import shadow_views
-    from clrender.scene import Sun
+    from clrender.passes import shadow_views
+    from clrender.scene.model import Sun
     rng = np.random.default_rng(5)
     bounds = ((-200.0, -200.0, -200.0), (200.0, 200.0, 200.0))   # wider than every view: no clamping
     sun = Sun(SUN_DIR, (1.0, 1.0, 1.0), True, 512)

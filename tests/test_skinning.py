@@ -493,12 +493,12 @@ def test_compressed_skinned_files_pose_like_the_original(device, kind):
 
 
 def test_batch_frames_of_a_skinned_file_equal_direct_renders(tmp_path, device):
-    """clrender.batch.render_frames on scenes/worm.gltf (skin, morph, animated weights): each
+    """clrender.batch.jobs.render_frames on scenes/worm.gltf (skin, morph, animated weights): each
     written frame (image and velocity AOV) equals pose(f / fps, 1 / fps) + render() of the same
     file, in any order (frames 5, 2, 3: a sequence and a jump)."""
     import imageio.v3 as iio
     from pathlib import Path
-    from clrender.batch import render_frames
+    from clrender.batch.jobs import render_frames
     worm = Path(__file__).resolve().parents[1] / "scenes" / "worm.gltf"
     fps = 24.0
     result = render_frames(worm, [5, 2, 3], tmp_path / "out", width=64, height=36, aovs=("velocity",),

@@ -16,8 +16,9 @@ import pyopencl.array as cla
 import pytest
 
 import clrender
-import clrender.device
-from clrender import Camera, Material, Scene, gbuffer as layout
+import clrender.device.core
+from clrender import Camera, Material, Scene
+from clrender.abi import gbuffer as layout
 from clrender.passes import Resources, SsaoBlurPass
 from reference.ao import bilateral_blur, ray_traced_ao
 from reference.shading import world_positions
@@ -175,7 +176,7 @@ def test_blur_matches_numpy_bilateral_reference(make_renderer):
 def run_blur(device, ao, linear_depth):
     """kernels/ssao_blur.cl on `ao` with a G-buffer whose depth plane is `linear_depth`."""
     h, w = ao.shape
-    dev = clrender.device.Device.get(device.id)
+    dev = clrender.device.core.Device.get(device.id)
     planes = np.zeros((len(layout.PLANES), h, w), np.uint32)
     planes[layout.FIELDS["linear_depth"].plane] = np.asarray(linear_depth, np.float32).view(np.uint32)
     blur = SsaoBlurPass(dev, clrender.RenderConfig(ssao=True))
@@ -236,7 +237,8 @@ def test_options_are_validated():
 
 
 def test_ao_preview_and_portability_check():
-    from clrender import aov_io, check
+    from clrender.outputs import aov_io
+    from clrender.tools import check
     ao = np.array([[0.0, 0.5, 1.0]], np.float32)
     assert aov_io.preview("ao", ao, np.zeros(ao.shape, bool)).tolist() == [[0, 128, 255]]   # grey, white = open
     assert "ao" in clrender.Frame.AOV_NAMES and "ao" in check.AOVS and check.TOLERANCES["ao"][0] == "abs"

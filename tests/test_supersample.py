@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 import clrender
-from clrender import Camera, Material, Scene, memory
+from clrender import Camera, Material, Scene
+from clrender.render import memory
 
 W, H = 40, 28
 

@@ -1,8 +1,8 @@
-"""The texture pool (clrender/texture_pool.py, kernels/mipmap.cl): mip levels built on the device are
+"""The texture pool (clrender/render/texture_pool.py, kernels/mipmap.cl): mip levels built on the device are
 bit-identical to the host definition `mip_chain` (PIL's BOX resize in linear space, 8-bit encoding),
 for odd sizes, 1xN and Nx1, tall images (PIL's other pass order), sRGB and linear; the pieces the
 kernel relies on (PIL's pass order, the encoder thresholds and table) are checked against PIL and
-the host encoder. Also: the program binary cache (clrender/device.py) and the binning pass's
+the host encoder. Also: the program binary cache (clrender/device/core.py) and the binning pass's
 initial tile-list room."""
 from __future__ import annotations
 
@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from clrender import texture_pool as tp
-from clrender.scene import Texture
+from clrender.render import texture_pool as tp
+from clrender.scene.model import Texture
 
 # odd, even, 1xN, Nx1, tall (columns first in PIL), wide, square, prime, 3-tap axes
 SIZES = [(1, 1), (1, 2), (2, 1), (1, 7), (9, 1), (3, 3), (5, 3), (37, 23), (23, 37), (64, 64), (64, 16),
@@ -33,7 +33,7 @@ def _textures(seed=1):
 
 
 def _device(device):
-    from clrender.device import Device
+    from clrender.device.core import Device
     return Device.get(device)
 
 
@@ -153,12 +153,12 @@ def test_mip_kernels_are_simulator_clean(device, capfd):
     assert_no_device_diagnostics(capfd)
 
 
-# -- the program binary cache (clrender/device.py) ---------------------------------------------------
+# -- the program binary cache (clrender/device/core.py) ---------------------------------------------------
 def test_program_binaries_are_cached_and_a_bad_one_is_rebuilt(device, tmp_path, monkeypatch):
-    from clrender.device import Device
+    from clrender.device.core import Device
     monkeypatch.setenv("CLRENDER_CACHE_DIR", str(tmp_path))
     d = _device(device)
-    monkeypatch.setattr(d, "keep_binaries", True)     # off on PoCL by default (clrender/device.py): test the store
+    monkeypatch.setattr(d, "keep_binaries", True)     # off on PoCL by default (clrender/device/core.py): test the store
     defines = {"ENCODE_INTERVALS": 4096, "CACHE_TEST": 1}   # a key no other test built
     saved = dict(Device._programs)
     try:
@@ -185,7 +185,7 @@ def test_program_binaries_are_cached_and_a_bad_one_is_rebuilt(device, tmp_path, 
 
 def test_program_from_a_binary_runs_like_the_source_build(device, tmp_path, monkeypatch):
     """The pool built by kernels loaded from cached binaries equals the host's."""
-    from clrender.device import Device
+    from clrender.device.core import Device
     d = _device(device)
     if not tp.device_builds_mips(d):
         pytest.skip(f"{device.label} has no doubles")
@@ -206,10 +206,10 @@ def test_program_from_a_binary_runs_like_the_source_build(device, tmp_path, monk
 
 # -- binning: the initial tile-list room -----------------------------------------------------------
 def test_tile_list_starts_from_the_scene_size(device):
-    from clrender.device import Device
+    from clrender.device.core import Device
     from clrender.passes.base import Resources
     from clrender.passes.binning import LIST_PER_TILE, BinningPass
-    from clrender.renderer import RenderConfig
+    from clrender.render.renderer import RenderConfig
 
     p = BinningPass(Device.get(device), RenderConfig(tile_size=16))
     p.allocate(64, 48)

@@ -1,6 +1,6 @@
 """Renderers used from several threads (issue 34, item 3): one Renderer called by a thread pool
 serialises its calls internally, several Renderers on one device render side by side, and a Frame
-read late (lazily, clrender/frame.py) in one thread while another thread renders on the same
+read late (lazily, clrender/render/frame.py) in one thread while another thread renders on the same
 Renderer still gives its own image. Every threaded result is compared bit for bit with the same
 job rendered alone on one thread."""
 from __future__ import annotations
@@ -108,11 +108,11 @@ def test_lazy_frame_read_while_another_thread_renders(device, scenes, monkeypatc
     """Frames rendered and left unread, then read by their own threads while other threads keep
     rendering on the same Renderer: each still holds its own pixels (the next render retires the
     previous frame's readback under the same lock a read takes). Host buffers are made slow to
-    allocate (as large fresh ones are: page faults, clrender/frame.py HostArrays), which widens
+    allocate (as large fresh ones are: page faults, clrender/render/frame.py HostArrays), which widens
     the moment between a read taking its source and enqueuing its copy."""
     import time
 
-    from clrender import frame as frame_module
+    from clrender.render import frame as frame_module
     r = clrender.Renderer(W, H, device=device.id)
     want = _references(r, scenes)
     empty = frame_module.HOST_ARRAYS.empty

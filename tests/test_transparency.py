@@ -27,8 +27,9 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 import clrender
-from clrender import Camera, Material, Scene, structs
-from clrender.scene import SceneError
+from clrender import Camera, Material, Scene
+from clrender.abi import structs
+from clrender.scene.model import SceneError
 from reference import shading as ref_shading
 from reference import transparency as ref
 from reference.raster import coverage_count, pixel_exact_camera, screen_to_world
@@ -1145,6 +1146,6 @@ def test_bad_refraction_is_a_scene_error(value):
                                           ("peel_layers", 2.0), ("max_fragments_per_pixel", -1),
                                           ("refraction", 1)])
 def test_bad_transparency_options(option, value):
-    from clrender.renderer import RenderConfig
+    from clrender.render.renderer import RenderConfig
     with pytest.raises(ValueError, match=option):
         RenderConfig.from_options(**{option: value})

@@ -23,7 +23,8 @@ import pytest
 from hypothesis import given, settings
 
 import clrender
-from clrender import Camera, Material, Scene, structs
+from clrender import Camera, Material, Scene
+from clrender.abi import structs
 from clrender.passes.second_geometry import SAMPLE_PATTERNS, sample_offsets
 from reference import aa
 from reference import shading as ref
@@ -287,7 +288,7 @@ def test_sub_sample_visibility_matches_reference(device, samples, monkeypatch):
 def test_kernel_sample_patterns_match_host():
     """kernels/samples.h carries the same D3D patterns as SAMPLE_PATTERNS (the NumPy reference's)."""
     import re
-    from clrender.device import kernels_dir
+    from clrender.device.core import kernels_dir
     text = (kernels_dir() / "samples.h").read_text()
     for n, pattern in SAMPLE_PATTERNS.items():
         m = re.search(rf"#(?:el)?if SAMPLES == {n}\n#define SAMPLE_PATTERN ([-\d, ]+)\n#define PATTERN_SPREAD (\d+)", text)
@@ -315,7 +316,7 @@ def test_bad_options(opts, message):
 
 
 def test_cli_and_toml_options(device, tmp_path, monkeypatch):
-    from clrender import cli
+    from clrender.cli import main as cli
     from helpers import record_render_configs
     configs = record_render_configs(monkeypatch)
     toml = tmp_path / "s.toml"

@@ -9,7 +9,7 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-from ..scene import Scene, SceneError
+from clrender.scene.model import Scene, SceneError
 
 SUFFIXES = (".toml", ".gltf", ".glb", ".obj", ".ply", ".stl")
 
@@ -22,7 +22,7 @@ def load_scene(path, default_environment: bool = True, allow=None) -> Scene:
     A glTF file (.gltf/.glb) that lights nothing itself (no KHR_lights_punctual light instanced in
     its scene: no point or spot light, no sun, no directional light) would render with the constant
     ambient term alone, nearly black: it gets the neutral studio environment instead
-    (`scene.set_environment("studio")`, clrender.environment) and
+    (`scene.set_environment("studio")`, clrender.scene.environment) and
     `scene.settings["default_environment"] = True`, so the CLI can say so. A glTF that defines
     lights keeps exactly its lights. `default_environment=False` turns this off (the TOML loader's
     mesh files: a TOML scene has the [environment] table). OBJ/PLY/STL and TOML files get no default
@@ -30,7 +30,7 @@ def load_scene(path, default_environment: bool = True, allow=None) -> Scene:
 
     `allow`: folders outside the scene file's own folder that the files it references may lie in
     (clrender.loaders.context; by default a scene reads only its own folder and data URIs)."""
-    from .context import loading
+    from clrender.loaders.context import loading
     if isinstance(allow, (str, os.PathLike)):      # one folder, not its characters
         allow = [allow]
     with loading(allow) as ctx:
@@ -50,8 +50,8 @@ def _load(path, default_environment: bool) -> Scene:
     """`_dispatch`, recording the files read (`Scene.source_files`) and turning any unexpected
     failure (a library's AttributeError, MemoryError, RecursionError, PIL's DecompressionBombError)
     into one SceneError line naming the file; a KeyboardInterrupt stays one."""
-    from . import context
-    from ..interrupt import import_deferring_interrupts
+    from clrender.loaders import context
+    from clrender.interrupt import import_deferring_interrupts
     if isinstance(path, (str, os.PathLike)):
         context.record(path)
         if Path(path).suffix.lower() in (".obj", ".ply", ".stl"):      # glTF loads without trimesh
@@ -99,21 +99,21 @@ def _dispatch(path, default_environment: bool) -> Scene:
     if not path.is_file():
         raise SceneError(f"{path}: not a file")
     if suffix == ".toml":
-        from .toml_scene import load_toml
+        from clrender.loaders.toml_scene import load_toml
         return load_toml(path)
     if suffix in (".gltf", ".glb"):
-        from .gltf import load_gltf
+        from clrender.loaders.gltf.assemble import load_gltf
         scene = load_gltf(path)
         if default_environment and not _has_lights(scene):
             scene.set_environment("studio")
             scene.settings["default_environment"] = True
         return scene
-    from . import mesh
+    from clrender.loaders import mesh
     return {".obj": mesh.load_obj, ".ply": mesh.load_ply, ".stl": mesh.load_stl}[suffix](path)
 
 
 def _has_lights(scene: Scene) -> bool:
     """Whether a loaded scene lights itself: punctual lights, a sun or directional lights."""
-    from .lights import DIRECTIONAL_KEY
+    from clrender.scene.lights import DIRECTIONAL_KEY
     settings = scene.settings if isinstance(scene.settings, dict) else {}
     return len(scene.lights) > 0 or scene.sun is not None or bool(settings.get(DIRECTIONAL_KEY))

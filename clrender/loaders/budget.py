@@ -28,7 +28,7 @@ import re
 import threading
 from typing import Optional
 
-from ..scene import SceneError
+from clrender.scene.model import SceneError
 
 ENV = "CLRENDER_MAX_MEMORY"
 DEFAULT_FRACTION = 0.5               # of the physical memory, without CLRENDER_MAX_MEMORY
@@ -135,7 +135,7 @@ class Budget:
 
 def current() -> Budget:
     """The active load's Budget, made on first use (a fresh one outside a load)."""
-    from .context import current as current_context
+    from clrender.loaders.context import current as current_context
     ctx = current_context()
     budget = ctx.budget
     if budget is None:

@@ -18,9 +18,9 @@ from typing import Callable, Optional, Sequence
 
 import numpy as np
 
-from ..camera import Camera
-from ..scene import TEXTURE_SLOTS, Material, Scene, SceneError, Texture, vertex_normals
-from ..tangents import generate_tangents
+from clrender.scene.camera import Camera
+from clrender.scene.model import TEXTURE_SLOTS, Material, Scene, SceneError, Texture, vertex_normals
+from clrender.scene.tangents import generate_tangents
 
 __all__ = ["SceneError", "Piece", "fail", "transform_points", "transform_normals", "transform_tangents",
            "world_piece", "assemble", "image_to_rgba", "decode_image", "load_images", "start_images", "check_faces",
@@ -254,7 +254,7 @@ def assemble(pieces: Sequence[Piece], materials: list[Material],
 def charge_scene_arrays(vertices: int, triangles: int, vertex_bytes: int, source) -> None:
     """Charge the memory budget for a Scene's arrays before they are concatenated: each per-vertex
     and per-triangle array twice (the per-piece converted parts, then the whole)."""
-    from . import budget
+    from clrender.loaders import budget
     # triangles: int64 parts and int32 indices, material, mesh and face ids
     nbytes = 2 * vertices * vertex_bytes + triangles * (24 + 2 * 24)
     budget.current().charge(nbytes, source, f"the scene's arrays ({vertices} vertices, {triangles} triangles)")
@@ -357,7 +357,7 @@ _IMAGES_LOCK = threading.Lock()
 
 
 def _decoded_once(key: str, decode: Callable[[], np.ndarray]) -> np.ndarray:
-    from .context import current
+    from clrender.loaders.context import current
     images = current().images
     with _IMAGES_LOCK:
         entry = images.get(key)
@@ -396,7 +396,7 @@ def _decode(source, where: str, name: str) -> np.ndarray:
     the RGBA array kept and checking the decoding's peak beside what the load holds."""
     from PIL import UnidentifiedImageError
 
-    from .budget import current
+    from clrender.loaders.budget import current
     try:
         with _open_image(source) as img:
             w, h = img.size

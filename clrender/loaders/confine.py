@@ -22,8 +22,8 @@ from pathlib import Path
 from typing import Optional
 from urllib.parse import unquote, urlsplit
 
-from ..scene import SceneError
-from . import context
+from clrender.scene.model import SceneError
+from clrender.loaders import context
 
 HINT = "pass --allow-outside PATH, or load_scene(..., allow=[PATH]), to allow it"
 _SCHEME = re.compile(r"^([A-Za-z][A-Za-z0-9+.-]+):")      # two letters or more: "C:/x" is a drive, not a scheme

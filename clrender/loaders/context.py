@@ -53,14 +53,14 @@ def loading(allow: Optional[Sequence] = None) -> Iterator[LoadContext]:
             yield outer
             return
         if outer.budget is None:        # made now, so the nested load charges the same one
-            from .budget import Budget
+            from clrender.loaders.budget import Budget
             outer.budget = Budget()
         ctx = LoadContext(allow=outer.allow + extra, budget=outer.budget, images=outer.images,
                           scene_dir=outer.scene_dir, files=outer.files)
     else:
         # the budget now, not lazily: a bad CLRENDER_MAX_MEMORY is its own one-line ValueError,
         # before any file is read, rather than an error inside some loader
-        from .budget import Budget
+        from clrender.loaders.budget import Budget
         ctx = LoadContext(allow=extra, budget=Budget())
     token = _CURRENT.set(ctx)
     try:

@@ -20,10 +20,12 @@ from typing import Optional
 
 import numpy as np
 
-from ..scene import BAD_COORDINATES, Material, Scene, SceneError, SceneObject, Texture, bad_vertex, coordinates_text
-from . import confine
-from .common import (Piece, assemble, check_faces, decode_image, fail, flip_v, load_images,
-                     trimesh_load, trimesh_vertex_normals, world_piece)
+from clrender.scene.model import (
+    BAD_COORDINATES, Material, Scene, SceneError, SceneObject, Texture, bad_vertex, coordinates_text)
+from clrender.loaders import confine
+from clrender.loaders.common import (
+    Piece, assemble, check_faces, decode_image, fail, flip_v, load_images, trimesh_load, trimesh_vertex_normals,
+    world_piece)
 
 # map_Kd options and how many arguments each takes (-o/-s/-t take 1 to 3 numbers)
 _MAP_OPTIONS = {"-blendu": 1, "-blendv": 1, "-bm": 1, "-boost": 1, "-cc": 1, "-clamp": 1, "-imfchan": 1,

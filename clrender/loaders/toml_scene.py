@@ -86,7 +86,7 @@ rotation = 0.0                # optional, degrees, default 0: turns it about +Y
 background = true             # optional, default true: pixels that hit no surface show it
 ```
 
-Environment (clrender/environment.py: formats, the direction convention, the studio numbers): with
+Environment (clrender/scene/environment.py: formats, the direction convention, the studio numbers): with
 an `[environment]` table the scene is lit by the image (`Scene.set_environment`) and the constant
 `ambient` term is not added. Without one a TOML scene has no environment, whatever its mesh files
 are (a glTF file loaded alone gets the studio environment when it has no lights: `load_scene`).
@@ -97,13 +97,13 @@ then `[lights] random` (`Scene.add_random_lights(count, seed, radius, intensity)
 meshes are loaded so the lights fill the whole scene's bounds; `count` is required, `seed`
 defaults to 0, `radius` (a number or [min, max]) to [0.5, 2.0], `intensity` to 1). A point or spot
 light without `radius`/`range` gets the infinite-range radius sqrt(256 * max(color * intensity))
-clamped to [1e-3, 4 x scene diagonal] (`clrender.loaders.lights`); radii and cone angles are not
+clamped to [1e-3, 4 x scene diagonal] (`clrender.scene.lights`); radii and cone angles are not
 changed by mesh transforms. `type = "directional"` (direction, color, intensity) goes to
 `Scene.settings["directional_lights"]` as {direction (unit), color x intensity} with a warning;
 without a `[sun]` table the first directional light (mesh files' first) becomes the sun.
 `Scene.settings["lights"]` keeps the validated `[[light]]` tables as written.
 
-Animation (clrender/keyframes.py): camera keys, an orbit or light keys put a
+Animation (clrender/scene/keyframes.py): camera keys, an orbit or light keys put a
 `keyframes.KeyframeAnimation` on `Scene.animation`; `scene.pose(t, dt)` then sets the camera and
 the keyed lights at time t and returns the camera at t - dt (as for glTF animations), and the
 loaded scene is posed at t = 0. Keys interpolate linearly (eye, target, fov_y_deg; light position
@@ -144,14 +144,17 @@ from typing import Optional
 
 import numpy as np
 
-from .. import keyframes, structs
-from ..camera import Camera
-from ..scene import ALPHA_MODES, Material, Scene, SceneError, SceneObject, Sun
-from . import budget, confine
-from .common import (charge_scene_arrays, concat_vertex_attributes, fail, shift_textures, transform_normals, transform_points,
-                     transform_tangents, parse_nested)
-from .lights import (AUTO_RADIUS_KEY, DIRECTIONAL_KEY, auto_radius, refresh_auto_radii, scene_diagonal,
-                     sun_from_directional, transform_lights, warn_directional)
+from clrender.scene import keyframes
+from clrender.abi import structs
+from clrender.scene.camera import Camera
+from clrender.scene.model import ALPHA_MODES, Material, Scene, SceneError, SceneObject, Sun
+from clrender.loaders import budget, confine
+from clrender.loaders.common import (
+    charge_scene_arrays, concat_vertex_attributes, fail, shift_textures, transform_normals, transform_points,
+    transform_tangents, parse_nested)
+from clrender.scene.lights import (
+    AUTO_RADIUS_KEY, DIRECTIONAL_KEY, auto_radius, refresh_auto_radii, scene_diagonal, sun_from_directional,
+    transform_lights, warn_directional)
 
 TOP_LEVEL = {"mesh", "material", "camera", "render", "light", "lights", "ambient", "sun", "environment"}
 ENVIRONMENT_KEYS = {"source", "intensity", "rotation", "background"}
@@ -297,7 +300,7 @@ def _camera(path, data):
 def _render(path, data) -> dict:
     import dataclasses
 
-    from ..renderer import RenderConfig
+    from clrender.render.renderer import RenderConfig
     data = _table(path, "[render]", data)
     options = {f.name for f in dataclasses.fields(RenderConfig)}
     _unknown(path, "[render]", data, RENDER_KEYS | options)
@@ -395,8 +398,8 @@ def _sun(path, data) -> Sun:
 
 
 def _environment(path, data):
-    """[environment] -> an Environment (clrender.environment), its file relative to the TOML file."""
-    from ..environment import STUDIO, load_environment
+    """[environment] -> an Environment (clrender.scene.environment), its file relative to the TOML file."""
+    from clrender.scene.environment import STUDIO, load_environment
     data = _table(path, "[environment]", data)
     _unknown(path, "[environment]", data, ENVIRONMENT_KEYS)
     source = data.get("source")
@@ -625,7 +628,7 @@ TOML_PARSE_FACTOR = 12
 
 
 def load_toml(path) -> Scene:
-    from . import load_scene
+    from clrender.loaders import load_scene
 
     path = Path(path)
     try:

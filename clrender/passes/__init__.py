@@ -1,21 +1,21 @@
 """Render passes: one pass module per kernel file (kernels/<name>.cl <-> passes/<name>.py)."""
-from .abuffer import AbufferPass
-from .base import RenderPass, Resources
-from .binning import BinningPass
-from .chunk_cull import ChunkCullPass
-from .composite import CompositePass
-from .fragments import FragmentsPass
-from .gbuffer import GBufferPass
-from .light_cull import LightCullPass
-from .particles import ParticlesPass
-from .peel import PeelPass
-from .raster import RasterPass
-from .setup import SetupPass
-from .shade import ShadePass
-from .shadow import ShadowPass
-from .ssao import SsaoPass
-from .ssao_blur import SsaoBlurPass
-from .tonemap import TonemapPass
+from clrender.passes.abuffer import AbufferPass
+from clrender.passes.base import RenderPass, Resources
+from clrender.passes.binning import BinningPass
+from clrender.passes.chunk_cull import ChunkCullPass
+from clrender.passes.composite import CompositePass
+from clrender.passes.fragments import FragmentsPass
+from clrender.passes.gbuffer import GBufferPass
+from clrender.passes.light_cull import LightCullPass
+from clrender.passes.particles import ParticlesPass
+from clrender.passes.peel import PeelPass
+from clrender.passes.raster import RasterPass
+from clrender.passes.setup import SetupPass
+from clrender.passes.shade import ShadePass
+from clrender.passes.shadow import ShadowPass
+from clrender.passes.ssao import SsaoPass
+from clrender.passes.ssao_blur import SsaoBlurPass
+from clrender.passes.tonemap import TonemapPass
 
 __all__ = ["RenderPass", "Resources", "ChunkCullPass", "SetupPass", "BinningPass", "RasterPass", "GBufferPass",
            "LightCullPass", "ParticlesPass", "SsaoPass", "SsaoBlurPass", "ShadowPass", "ShadePass",

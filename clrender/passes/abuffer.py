@@ -9,9 +9,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from .base import Overflow, RenderPass, empty, round_up, scan_for, zeros
-from .forward import FORWARD_INPUTS, LAYER_PLANES, forward_args, forward_defines, forward_grid, forward_vec
-from .fragments import walk_args, walk_global_size
+from clrender.passes.base import Overflow, RenderPass, empty, round_up, scan_for, zeros
+from clrender.passes.forward import (
+    FORWARD_INPUTS, LAYER_PLANES, forward_args, forward_defines, forward_grid, forward_vec)
+from clrender.passes.fragments import walk_args, walk_global_size
 
 SORT_GROUP = (8, 8)
 BYTES_PER_FRAGMENT = 8          # frag_depth float + frag_prim int
@@ -85,13 +86,13 @@ class AbufferPass(RenderPass):
             return
         total = int(self.list_len.get(queue=self.queue).sum(dtype=np.int64))
         if total > MAX_FRAGMENTS:
-            from ..memory import DeviceMemoryError
+            from clrender.render.memory import DeviceMemoryError
             raise DeviceMemoryError(f"the frame has {total} transparent fragments; the A-buffer holds at most "
                                     f"{MAX_FRAGMENTS} (2^31 - 1): render at a smaller size or set "
                                     f"max_fragments_per_pixel")
 
     def grow(self, name, needed):
         capacity = min(round_up(needed + needed // 4, 4096), MAX_FRAGMENTS)
-        from ..memory import check_buffer
+        from clrender.render.memory import check_buffer
         check_buffer(self.device, "the A-buffer's fragment lists", needed, BYTES_PER_FRAGMENT, capacity)
         self._allocate_fragments(capacity)

@@ -12,8 +12,8 @@ import numpy as np
 import pyopencl as cl
 import pyopencl.array as cla
 
-from .. import capabilities
-from ..timestamps import elapsed_ms, stamp
+from clrender.device import capabilities
+from clrender.device.timestamps import elapsed_ms, stamp
 
 
 @dataclass
@@ -43,7 +43,7 @@ class Overflow:
 
 
 # The scene resources a surface is evaluated from, in the order of kernels/surface_vec.h
-# SCENE_PARAMS (after the prims), as the scene upload names them (clrender/scene_gpu.py).
+# SCENE_PARAMS (after the prims), as the scene upload names them (clrender/render/scene_upload.py).
 SCENE_INPUTS = ("positions", "normals", "uvs", "triangles", "materials", "texels", "srgb_lut", "tex_infos",
                 "tex_levels", "tangents", "colors", "n_vertices", "has_colors")
 
@@ -168,6 +168,6 @@ def launch_2d(nx: int, ny: int, wg: tuple[int, int] = WG_2D) -> tuple[tuple[int,
 
 
 def scan_for(device):
-    """The device's exclusive prefix sum with grand total (clrender/scan.py)."""
-    from ..scan import prefix_sum_for
+    """The device's exclusive prefix sum with grand total (clrender/device/scan.py)."""
+    from clrender.device.scan import prefix_sum_for
     return prefix_sum_for(device)

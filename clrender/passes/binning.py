@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .base import Overflow, RenderPass, fill_zero, launch_1d, round_up, scan_for, zeros
+from clrender.passes.base import Overflow, RenderPass, fill_zero, launch_1d, round_up, scan_for, zeros
 
 # Initial tile-list room once the scene is known: min(2 per triangle, LIST_PER_TILE per tile).
 # Sponza's atrium (262k triangles, 1280x720, 8-pixel tiles) bins 293k entries, 1.1 per triangle

@@ -32,8 +32,8 @@ import math
 import numpy as np
 import pyopencl.array as cla
 
-from .. import capabilities
-from .base import RenderPass, empty, round_up
+from clrender.device import capabilities
+from clrender.passes.base import RenderPass, empty, round_up
 
 GROUP = (32, 8)          # VEC = 1 (GPUs): a pixel per work-item
 CPU_GROUP = (16, 1)      # VEC > 1 (CPUs): runs of VEC pixels, a group along one row (measured on PoCL)

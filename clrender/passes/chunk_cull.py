@@ -3,7 +3,7 @@ can see, so that setup (kernels/setup.cl, CHUNK_CULL=1) reads and transforms onl
 
 Each chunk's world-space box is computed on the device once per scene geometry: boxes are kept
 per device, keyed by the identity of the positions and triangles buffers (an animation frame
-replaces them, see clrender/scene_gpu.py), and shared by every view -- the camera's setup and
+replaces them, see clrender/render/scene_upload.py), and shared by every view -- the camera's setup and
 each shadow map's (clrender/passes/shadow.py). Per view one single-work-group kernel tests the
 boxes against the planes setup.cl trivially rejects triangles on and lists the visible chunks
 first (ascending) and the culled ones last; setup then launches over chunk slots and gives the
@@ -19,7 +19,7 @@ import weakref
 
 import numpy as np
 
-from .base import RenderPass, empty, launch_1d
+from clrender.passes.base import RenderPass, empty, launch_1d
 
 CHUNK = 128          # triangles per chunk (chunk_cull.cl and setup.cl CHUNK; Sponza shadow setup: 128 < 256 < 64)
 CULL_WG = 64         # chunk_cull's single work-group

@@ -14,9 +14,9 @@ import math
 
 import numpy as np
 
-from .. import capabilities
-from .. import gbuffer as layout
-from .base import RenderPass, empty, round_up
+from clrender.device import capabilities
+from clrender.abi import gbuffer as layout
+from clrender.passes.base import RenderPass, empty, round_up
 
 PIXELS_PER_GROUP = 256      # work-groups of 256 pixels of one row (256 / VEC work-items)
 

@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from .. import capabilities
-from .ibl import ENV_OUTPUTS, env_kernel_args
-from .base import SCENE_INPUTS, round_up, scene_args, view_defines
+from clrender.device import capabilities
+from clrender.passes.ibl import ENV_OUTPUTS, env_kernel_args
+from clrender.passes.base import SCENE_INPUTS, round_up, scene_args, view_defines
 
 # The transparent layers' planes (forward.h store_layers): colour x3, transmittance, refraction
 # offset x, y, the nearest fragment's triangle id (int bits; Frame.object_id)
@@ -33,7 +33,7 @@ def forward_grid(width: int, height: int, vec: int) -> tuple[tuple, tuple]:
 
 
 def device_light_defines(config) -> dict:
-    from .shade import SHADOW_FILTERS
+    from clrender.passes.shade import SHADOW_FILTERS
     return {"SHADOWS": int(config.shadows), "SHADOW_FILTER": SHADOW_FILTERS[config.shadow_filter],
             "POISSON_RADIUS": f"{float(config.shadow_filter_radius)!r}f"}
 

@@ -7,10 +7,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from .. import gbuffer as layout
-from .base import SCENE_INPUTS, scene_args
-from .ibl import env_kernel_args
-from .shade import ShadePass
+from clrender.abi import gbuffer as layout
+from clrender.passes.base import SCENE_INPUTS, scene_args
+from clrender.passes.ibl import env_kernel_args
+from clrender.passes.shade import ShadePass
 
 AOV_PLANES = tuple(p for p in layout.PLANES if p not in layout.DEPTH_PLANES)
 

@@ -8,10 +8,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from .. import capabilities
-from .base import Overflow, RenderPass, Resources, empty, view_defines
-from .binning import BinningPass
-from .setup import SetupPass
+from clrender.device import capabilities
+from clrender.passes.base import Overflow, RenderPass, Resources, empty, view_defines
+from clrender.passes.binning import BinningPass
+from clrender.passes.setup import SetupPass
 
 
 class FragmentsPass(RenderPass):

@@ -6,9 +6,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from .. import capabilities
-from .base import RenderPass, empty
-from .edge_aa import global_size, work_group
+from clrender.device import capabilities
+from clrender.passes.base import RenderPass, empty
+from clrender.passes.edge_aa import global_size, work_group
 
 
 class FxaaPass(RenderPass):

@@ -7,9 +7,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from .. import capabilities
-from .. import gbuffer as layout
-from .base import SCENE_INPUTS, RenderPass, empty, round_up, scene_args, view_defines
+from clrender.device import capabilities
+from clrender.abi import gbuffer as layout
+from clrender.passes.base import SCENE_INPUTS, RenderPass, empty, round_up, scene_args, view_defines
 
 
 # Pixels per work-group (GB_TILE_W × GB_TILE_H blocks, kernels/gbuffer.cl): consecutive rows of a

@@ -1,5 +1,5 @@
 """Hatching pass (kernels/hatching.cl): the report's non-photorealistic post effect (IV.3,
-"crayonnage"), tonal art maps after Praun et al. 2001 (clrender/tam.py), drawn on white paper with
+"crayonnage"), tonal art maps after Praun et al. 2001 (clrender/passes/tam.py), drawn on white paper with
 ink outlines. In the LDR chain after FXAA, before encode (docs/post.md "Hatching"): reads `ldr`
 and the G-buffer (`gbuffer`, the output resolution's), publishes its own `ldr`.
 
@@ -15,16 +15,17 @@ import weakref
 import numpy as np
 import pyopencl.array as cla
 
-from .. import capabilities, tam
-from .. import gbuffer as layout
-from .base import RenderPass, empty, launch_2d
+from clrender.device import capabilities
+from clrender.passes import tam
+from clrender.abi import gbuffer as layout
+from clrender.passes.base import RenderPass, empty, launch_2d
 
 # One upload of the tonal art map per device (shared by that device's renderers).
 _TAM_ON_DEVICE: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
 
 
 def tam_buffer(device) -> cla.Array:
-    """The tonal art map on `device` (clrender.tam.device_layout()), uploaded once."""
+    """The tonal art map on `device` (clrender.passes.tam.device_layout()), uploaded once."""
     buf = _TAM_ON_DEVICE.get(device)
     if buf is None:
         buf = cla.to_device(device.queue, tam.device_layout())

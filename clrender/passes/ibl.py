@@ -28,9 +28,10 @@ from typing import Hashable, Optional
 import numpy as np
 import pyopencl as cl
 
-from .. import capabilities, progress
-from ..device import ProgramSpec
-from .base import RenderPass, launch_1d, launch_2d, zeros
+from clrender.device import capabilities
+from clrender import progress
+from clrender.device.core import ProgramSpec
+from clrender.passes.base import RenderPass, launch_1d, launch_2d, zeros
 
 SOURCE = "ibl.cl"
 DEFAULT_SPECULAR_LEVELS = 6

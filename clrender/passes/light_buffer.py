@@ -7,9 +7,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from .base import empty
-from .ibl import ENV_OUTPUTS
-from .shade import ShadePass
+from clrender.passes.base import empty
+from clrender.passes.ibl import ENV_OUTPUTS
+from clrender.passes.shade import ShadePass
 
 PRECISIONS = {"float32": (np.float32, 0), "float16": (np.float16, 1)}
 

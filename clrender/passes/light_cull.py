@@ -3,9 +3,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from .. import capabilities
-from .. import gbuffer as layout
-from .base import Overflow, RenderPass, empty, launch_1d, round_up, scan_for, view_defines, zeros
+from clrender.device import capabilities
+from clrender.abi import gbuffer as layout
+from clrender.passes.base import Overflow, RenderPass, empty, launch_1d, round_up, scan_for, view_defines, zeros
 
 
 class TileLightLists(RenderPass):

@@ -6,10 +6,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from .. import capabilities
-from .. import gbuffer as layout
-from .base import empty, launch_1d, round_up, scan_for, view_defines, zeros
-from .light_cull import TileLightLists
+from clrender.device import capabilities
+from clrender.abi import gbuffer as layout
+from clrender.passes.base import empty, launch_1d, round_up, scan_for, view_defines, zeros
+from clrender.passes.light_cull import TileLightLists
 
 
 class LightQuadsPass(TileLightLists):

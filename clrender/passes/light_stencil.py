@@ -6,9 +6,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from .. import capabilities
-from .. import gbuffer as layout
-from .base import Overflow, RenderPass, empty, fill_zero, launch_1d, view_defines, zeros
+from clrender.device import capabilities
+from clrender.abi import gbuffer as layout
+from clrender.passes.base import Overflow, RenderPass, empty, fill_zero, launch_1d, view_defines, zeros
 
 INITIAL_WORDS = 1        # 32 lights per tile list before the first growth
 

@@ -5,16 +5,16 @@ raster ran at N sub-samples (docs/raster_contract.md §10) and each sample is co
 pixel's light buffer, then averaged: the report's anti-aliasing on the colour; a sample that
 sees sample 0's prim is not evaluated again (material.cl material_samples). With one sample it
 writes the G-buffer's surface planes (AOVs) from the pixel centre's surface; with msaa, pass 1's
-G-buffer pass writes them (clrender/gbuffer.py geometry_planes)."""
+G-buffer pass writes them (clrender/abi/gbuffer.py geometry_planes)."""
 from __future__ import annotations
 
 import numpy as np
 
-from .. import capabilities
-from .. import gbuffer as layout
-from .base import SCENE_INPUTS, RenderPass, empty, round_up, scene_args, view_defines
-from .ibl import ENV_OUTPUTS, env_kernel_args
-from .light_buffer import PRECISIONS, gltf_sums
+from clrender.device import capabilities
+from clrender.abi import gbuffer as layout
+from clrender.passes.base import SCENE_INPUTS, RenderPass, empty, round_up, scene_args, view_defines
+from clrender.passes.ibl import ENV_OUTPUTS, env_kernel_args
+from clrender.passes.light_buffer import PRECISIONS, gltf_sums
 
 
 SAMPLE_RUNS = 8        # runs of VEC pixels per work-item of material_samples (material.cl default)

@@ -15,9 +15,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from .. import capabilities
-from .. import gbuffer as layout
-from .base import RenderPass, empty, launch_2d, round_up
+from clrender.device import capabilities
+from clrender.abi import gbuffer as layout
+from clrender.passes.base import RenderPass, empty, launch_2d, round_up
 
 MAX_RADIUS = 32         # pixels: the longest half blur |V|, and the tile side
 MIN_LENGTH = 0.5        # pixels: shorter motion during the exposure is static

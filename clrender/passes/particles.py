@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .base import RenderPass, launch_1d
+from clrender.passes.base import RenderPass, launch_1d
 
 
 class ParticlesPass(RenderPass):

@@ -6,9 +6,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from .base import RenderPass, empty
-from .forward import FORWARD_INPUTS, LAYER_PLANES, forward_args, forward_defines, forward_grid, forward_vec
-from .fragments import walk_args, walk_global_size
+from clrender.passes.base import RenderPass, empty
+from clrender.passes.forward import (
+    FORWARD_INPUTS, LAYER_PLANES, forward_args, forward_defines, forward_grid, forward_vec)
+from clrender.passes.fragments import walk_args, walk_global_size
 
 
 class PeelPass(RenderPass):

@@ -1,6 +1,6 @@
 """Pose pass (kernels/pose.cl): skinned and morphing vertices posed on the device, before setup.
 
-The bind attributes, influences and morph deltas of `Scene.deformation` (clrender/deform.py) are
+The bind attributes, influences and morph deltas of `Scene.deformation` (clrender/scene/deform.py) are
 uploaded once per deformation and device; a frame uploads only the joint palette and the morph
 weights (12 floats per joint matrix, one per target, twice when the pose has a previous state)
 and writes the posed positions, normals and tangents into the scene upload's buffers, plus the
@@ -25,8 +25,8 @@ import numpy as np
 import pyopencl as cl
 import pyopencl.array as cla
 
-from ..loaders.common import NO_TANGENT
-from .base import RenderPass, launch_1d
+from clrender.loaders.common import NO_TANGENT
+from clrender.passes.base import RenderPass, launch_1d
 
 POSE_WG = 64
 DEF_INTS = 8            # pose.cl's deformer record
@@ -65,7 +65,7 @@ def device_layout(deformation) -> dict:
         local += d.count
         delta += d.targets * d.count
     if delta >= 2**31 // 3 or n * k >= 2**31:
-        from ..errors import SceneError
+        from clrender.errors import SceneError
         raise SceneError(f"{deformation.source}: too many deformed vertices or morph deltas for 32-bit offsets")
     morph_vertex = np.concatenate([np.arange(int(t[1]), int(t[1] + t[2]), dtype=np.int32)
                                    for t in table[: len(ds)] if t[3] > 0] or [np.zeros(0, np.int32)])
@@ -175,7 +175,7 @@ class PosePass(RenderPass):
         n_vertices = int(res["n_vertices"])
         end = self._static[d]["end"]
         if end > n_vertices:       # arrays replaced by hand: the kernel would write past the buffers
-            from ..errors import SceneError
+            from clrender.errors import SceneError
             raise SceneError(f"{d.source}: the deformed meshes use vertices up to {end}, the scene has {n_vertices}")
         upload_prev = res.buffers.get("prev_positions")
         wants_prev = d.previous_palette is not None or upload_prev is not None

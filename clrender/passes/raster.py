@@ -3,8 +3,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from .. import capabilities
-from .base import RenderPass, empty
+from clrender.device import capabilities
+from clrender.passes.base import RenderPass, empty
 
 
 class RasterPass(RenderPass):

@@ -7,8 +7,8 @@ from __future__ import annotations
 import numpy as np
 import pyopencl.array as cla
 
-from .. import gbuffer as layout
-from .base import RenderPass, empty, round_up
+from clrender.abi import gbuffer as layout
+from clrender.passes.base import RenderPass, empty, round_up
 
 GROUP = (16, 4)
 

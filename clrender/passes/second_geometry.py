@@ -11,10 +11,10 @@ D3D pattern (docs/raster_contract.md §10): one setup, binning and raster for al
 """
 from __future__ import annotations
 
-from .base import RenderPass, Resources
-from .binning import BinningPass
-from .raster import RasterPass
-from .setup import SetupPass
+from clrender.passes.base import RenderPass, Resources
+from clrender.passes.binning import BinningPass
+from clrender.passes.raster import RasterPass
+from clrender.passes.setup import SetupPass
 
 # Sample offsets from the pixel centre in 1/16 pixel, y down: Direct3D's standard multisample
 # patterns (D3D11_STANDARD_MULTISAMPLE_PATTERN); ×16 gives the raster's 1/256 units. The kernels'

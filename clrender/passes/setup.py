@@ -9,9 +9,9 @@ from __future__ import annotations
 import numpy as np
 import pyopencl as cl
 
-from .. import structs
-from .base import Overflow, RenderPass, empty, fill_zero, launch_1d, round_up, scan_for, zeros
-from .chunk_cull import CHUNK, ChunkCullPass, chunk_defines, n_chunks
+from clrender.abi import structs
+from clrender.passes.base import Overflow, RenderPass, empty, fill_zero, launch_1d, round_up, scan_for, zeros
+from clrender.passes.chunk_cull import CHUNK, ChunkCullPass, chunk_defines, n_chunks
 
 
 SELECT = {"all": 0, "opaque": 1, "blend": 2, "dither": 3}

@@ -7,10 +7,11 @@ import pyopencl.array as cla
 
 from dataclasses import dataclass
 
-from .. import capabilities, structs
-from .. import gbuffer as layout
-from .ibl import ENV_OUTPUTS, env_kernel_args
-from .base import RenderPass, empty, view_defines, zeros
+from clrender.device import capabilities
+from clrender.abi import structs
+from clrender.abi import gbuffer as layout
+from clrender.passes.ibl import ENV_OUTPUTS, env_kernel_args
+from clrender.passes.base import RenderPass, empty, view_defines, zeros
 
 
 SHADOW_FILTERS = {"hard": 0, "pcf3x3": 1, "poisson": 2}

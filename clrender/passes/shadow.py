@@ -3,7 +3,7 @@ light, rendered by the camera's own rasterizer stages -- SetupPass, BinningPass 
 depth-only RasterPass (kernels/setup.cl, binning.cl, raster.cl) -- into that light's square of
 one shadow atlas. No kernel of its own; kernels/shadow.h (in shade.cl) reads the atlas.
 
-Views (clrender/shadow_views.py): the sun's orthographic cascades first (setup/raster built
+Views (clrender/passes/shadow_views.py): the sun's orthographic cascades first (setup/raster built
 with ORTHO=1), then one perspective view per shadowed spot light in light order. Maps of the
 same (size, projection) share one set of stages and run one after another; each view's prim
 and tile-list totals are copied aside so the pipeline's grow-and-retry sees every view's need.
@@ -25,12 +25,14 @@ import numpy as np
 import pyopencl as cl
 import pyopencl.array as cla
 
-from .. import capabilities, shadow_views, structs
-from ..timestamps import elapsed_ms, stamp
-from .base import Overflow, RenderPass, Resources, empty, zeros
-from .binning import BinningPass
-from .raster import RasterPass
-from .setup import SetupPass
+from clrender.device import capabilities
+from clrender.passes import shadow_views
+from clrender.abi import structs
+from clrender.device.timestamps import elapsed_ms, stamp
+from clrender.passes.base import Overflow, RenderPass, Resources, empty, zeros
+from clrender.passes.binning import BinningPass
+from clrender.passes.raster import RasterPass
+from clrender.passes.setup import SetupPass
 
 STAGES = ("setup", "binning", "raster")
 
@@ -123,7 +125,7 @@ class ShadowPass(RenderPass):
             m.set(np.ascontiguousarray(v.matrix, np.float32).reshape(-1), queue=self.queue)
 
     def _check_atlas_fits(self, layout, nbytes):
-        from ..memory import DeviceMemoryError, limits
+        from clrender.render.memory import DeviceMemoryError, limits
         total, max_alloc = limits(self.device.cl_device)
         if nbytes > min(max_alloc, total):
             raise DeviceMemoryError(

@@ -6,9 +6,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from .. import capabilities
-from .. import gbuffer as layout
-from .base import RenderPass, empty, round_up, view_defines
+from clrender.device import capabilities
+from clrender.abi import gbuffer as layout
+from clrender.passes.base import RenderPass, empty, round_up, view_defines
 
 PIXELS_PER_GROUP_X, GROUP_ROWS = 16, 8     # a work-group covers 16×8 pixels whatever VEC is
 

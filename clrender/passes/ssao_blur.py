@@ -5,10 +5,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from .. import capabilities
-from .. import gbuffer as layout
-from .base import RenderPass, empty
-from .ssao import global_size, work_group
+from clrender.device import capabilities
+from clrender.abi import gbuffer as layout
+from clrender.passes.base import RenderPass, empty
+from clrender.passes.ssao import global_size, work_group
 
 
 class SsaoBlurPass(RenderPass):

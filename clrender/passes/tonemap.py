@@ -3,9 +3,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from .. import capabilities
-from .. import gbuffer as layout
-from .base import RenderPass, empty, launch_1d
+from clrender.device import capabilities
+from clrender.abi import gbuffer as layout
+from clrender.passes.base import RenderPass, empty, launch_1d
 
 OPERATORS = {"clamp": 0, "reinhard": 1, "aces": 2}
 

@@ -1,6 +1,6 @@
 /* layout_probe.cl: test-only kernels. Reports struct sizes/offsets as the device compiler
  * sees them, and runs the G-buffer pack functions on given inputs, so tests can compare
- * them with clrender/structs.py and the NumPy codecs in clrender/gbuffer.py.
+ * them with clrender/abi/structs.py and the NumPy codecs in clrender/abi/gbuffer.py.
  * Work-groups: 1-D, any size. */
 #define VEC 1
 #include "../structs.h"

@@ -19,7 +19,7 @@ from __future__ import annotations
 import numpy as np
 
 from clrender import Camera, Material, Scene
-from clrender.gbuffer import srgb_to_linear_lut
+from clrender.abi.gbuffer import srgb_to_linear_lut
 
 FAR = 50.0
 

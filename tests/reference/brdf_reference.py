@@ -16,7 +16,7 @@ Outgoing radiance from a light delivering irradiance E (RGB) on a surface facing
     Lo = f · E · max(N·L, 0)
 The constant ambient term of clrender's glTF materials: ambient · c_diff · (1 − F0).
 
-Punctual lights (`clrender.structs.light_dtype` records), d = |light position − P|:
+Punctual lights (`clrender.abi.structs.light_dtype` records), d = |light position − P|:
     falloff 0 (the report's, made by Scene.add_point_light):  A = (1 − (d/r)²)³ for d < r, else 0
     falloff 1 (KHR_lights_punctual with `range` r):          A = clamp(1 − (d/r)⁴, 0, 1)² / d²
     falloff 2 (KHR_lights_punctual without range; r is only a culling radius): A = 1/d² for d < r, else 0
@@ -24,7 +24,7 @@ Punctual lights (`clrender.structs.light_dtype` records), d = |light position �
     between the spot axis and the direction from the light to P.
     E = A · light colour (candela × colour for glTF lights).
 
-G-buffer quantization (clrender/gbuffer.py: what the opaque pipelines store): base colour as 8-bit
+G-buffer quantization (clrender/abi/gbuffer.py: what the opaque pipelines store): base colour as 8-bit
 sRGB (IEC 61966-2-1 curve, rounded to the nearest code), metallic and roughness as unorm8
 (round(255·x)/255). Transparent fragments are shaded from the material unquantized.
 

@@ -13,9 +13,9 @@ For every foreground pixel of a rendered (or reference-rasterized) `triangle_id`
   mirrored-repeat applied to integer texel indices (GL 4.6 §8.14.2), bilinear, trilinear between
   mip levels floor(λ) and floor(λ) + 1 (the last level repeated), λ = log2 of the longer
   screen-footprint axis in level-0 texels, clamped to [0, levels − 1]. sRGB slots (base colour,
-  emissive) decode each texel through `clrender.gbuffer.srgb_to_linear_lut()` before filtering,
+  emissive) decode each texel through `clrender.abi.gbuffer.srgb_to_linear_lut()` before filtering,
   linear slots (metallic-roughness, normal, occlusion) use byte/255. Mip levels come from
-  `clrender.texture_pool.mip_chain` (host preprocessing, not the kernels under test), rebuilt with
+  `clrender.render.texture_pool.mip_chain` (host preprocessing, not the kernels under test), rebuilt with
   the slot's colour space when the Texture's own flag disagrees with it.
 * **Material** (docs/materials.md "Evaluation per pixel"): slot coordinates uv_s = M_s·(u, v, 1)
   from `UVTransform.matrix()` and the slot's TEXCOORD set; base = factor × texture × vertex
@@ -28,7 +28,7 @@ For every foreground pixel of a rendered (or reference-rasterized) `triangle_id`
   e·emissive_strength, unlit: colour = albedo; point and spot lights through
   `reference.shading.light_factor`, the sun as a directional light (shadows only through a
   given sun visibility, e.g. a Frame's shadow plane).
-* **Tangents** without `Scene.tangents` come from `clrender.tangents.generate_tangents` on the
+* **Tangents** without `Scene.tangents` come from `clrender.scene.tangents.generate_tangents` on the
   normal map's uv set (host preprocessing, as the upload does), unless `tangents=` is given.
 * **LOD log2**: `log2="exact"` is GL's; `log2="fast"` reproduces the approximation the kernels
   document (kernels/texture_vec.h: the float's exponent plus a linear mantissa, up to 0.086 off),
@@ -53,8 +53,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from clrender.gbuffer import srgb_to_linear_lut
-from clrender.scene import Texture
+from clrender.abi.gbuffer import srgb_to_linear_lut
+from clrender.scene.model import Texture
 
 # docs/materials.md constants (deliberately restated, not imported from clrender.scene)
 F0_DIELECTRIC = 0.04
@@ -120,7 +120,7 @@ def texture_levels(texture: Texture, srgb: bool) -> list[np.ndarray]:
     hit = _LEVELS.get(key)
     if hit is not None and hit[0] is texture:
         return hit[1]
-    from clrender.texture_pool import mip_chain
+    from clrender.render.texture_pool import mip_chain
     source = texture if bool(texture.srgb) == bool(srgb) else \
         Texture(texture.name, texture.rgba, texture.wrap_s, texture.wrap_t, bool(srgb))
     lut = srgb_to_linear_lut().astype(np.float64)
@@ -221,12 +221,12 @@ def _unit(v):
 
 
 def _default_tangents(scene):
-    """scene.tangents, else the host generator's (clrender/tangents.py: what the upload uses for
+    """scene.tangents, else the host generator's (clrender/scene/tangents.py: what the upload uses for
     a scene without them; host preprocessing like the mip chain, not the kernels under test),
     from the uv set of the first normal-mapped material."""
     if scene.tangents is not None:
         return np.asarray(scene.tangents, np.float64)
-    from clrender.tangents import generate_tangents
+    from clrender.scene.tangents import generate_tangents
     sets = [m.normal_uv.texcoord for m in scene.materials if m.normal_texture >= 0] or [0]
     return np.asarray(generate_tangents(scene.positions, scene.normals, scene.uv_set(sets[0]), scene.triangles),
                       np.float64)
@@ -243,7 +243,7 @@ def evaluate(scene, camera, width: int, height: int, triangle_id, mr_channels=("
       view (unit, towards the eye) (H, W, 3); unlit, backface (H, W) bool; material (H, W)
       int (−1 background); uv (H, W, K, 2) per TEXCOORD set; metallic, roughness (H, W)
       (NaN where the material has no metallic factor); lod (H, W, 5) per slot (NaN without texture).
-    `tangents` (V, 4) overrides scene.tangents (else scene.tangents, else clrender.tangents).
+    `tangents` (V, 4) overrides scene.tangents (else scene.tangents, else clrender.scene.tangents).
     `log2` "exact" (GL) or "fast" (the kernels' approximation) for the mip LOD."""
     tid = np.asarray(triangle_id)
     H, W = tid.shape

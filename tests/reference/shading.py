@@ -34,8 +34,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from clrender import structs
-from clrender.gbuffer import linear_to_srgb8
+from clrender.abi import structs
+from clrender.abi.gbuffer import linear_to_srgb8
 
 TONEMAPS = ("reinhard", "aces")
 

@@ -1,7 +1,7 @@
 """Independent NumPy reference for glTF posing (skins and morph targets), written from the glTF 2.0
 spec (§3.7.2.2 morph targets, §3.7.3 skins, Appendix C interpolation) for the tests. It reads the
 file itself (JSON, buffers, accessors with strides, normalized integers and sparse data) and shares
-no code with clrender: not its document reader, not its Animation, not clrender.deform.
+no code with clrender: not its document reader, not its Animation, not clrender.scene.deform.
 
     ref = GltfReference(path)
     positions, normals, tangents = ref.pose(node, primitive, t)       # float64, world space

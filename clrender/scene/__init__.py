@@ -1,0 +1,14 @@
+"""The host scene model, pure NumPy: Scene, Camera, Material, environments, lights rules,
+animation (keyframes, skins, morphs) and tangents. No file reading beyond what a model needs, no OpenCL.
+
+`clrender.scene` was a module before the package: its names stay importable from here."""
+from clrender._lazy import exports
+
+__all__, __getattr__, __dir__ = exports(__name__, {
+    "model": ("Scene", "SceneObject", "Material", "Texture", "UVTransform", "Sun", "SceneError", "ALPHA_MODES", "TEXTURE_SLOTS", "SHADOW_MAP_SIZES",),
+    "camera": ("Camera",),
+    "environment": ("Environment", "STUDIO", "load_environment", "studio_environment",),
+    "deform": ("Deformer", "Deformation", "Skin",),
+    "keyframes": ("KeyframeAnimation", "LightKey", "LightTrack",),
+    "tangents": ("generate_tangents",),
+}, fallback="model")
