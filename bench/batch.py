@@ -15,7 +15,7 @@ For each mode it prints frames per second over the whole job, the first frame's 
 (scene load, upload, program builds: the per-process overhead) against the median of the other
 frames, the median render() wall time and pass sum (Frame.stats total_ms), and whether every PNG
 is byte-identical to the single-process run. Cluster start-up is timed separately. Writes
-bench/results/batch-*.json and, with --gif, the fly-through as a GIF for the README.
+bench/results/batch-*.json and, with --gif, the fly-through as a GIF for docs/batch.md.
 """
 from __future__ import annotations
 
@@ -118,7 +118,7 @@ def main(argv=None) -> int:
         if args.gif:
             import numpy as np
             from PIL import Image
-            size = (args.width // 2, args.height // 2)       # half size, every other frame: a README-sized file
+            size = (args.width // 2, args.height // 2)       # half size, every other frame: a docs-page-sized file
             small = [np.asarray(Image.open(single / f"f_{f:03d}.png").convert("RGB").resize(size, Image.LANCZOS))
                      for f in frames[::2]]
             write_video(args.gif, small, fps / 2)

@@ -1,4 +1,4 @@
-"""The Khronos sample models of docs/materials.md rendered by clrender: a picture for the README.
+"""The Khronos sample models of docs/materials.md rendered by clrender: the picture in docs/materials.md.
 
     python -m bench.gallery [--size 384] [--device NAME]
 

@@ -29,7 +29,7 @@ import numpy as np
 
 from clrender.render.pipeline import pass_ms
 
-from clrender.common import (
+from .common import (
     REPO, SPONZA, SPONZA_CAMERA, host_medians, medians, require_scene, time_user_frames, write_record)
 
 ENVIRONMENT = REPO.parent / "shared" / "environments" / "courtyard.exr"

@@ -1,5 +1,5 @@
-"""glTF assets under HDR environments, next to the old look: the README's picture of the glTF BRDF
-and image-based lighting (docs/shading.md).
+"""glTF assets under HDR environments, next to the old look: the picture of the glTF BRDF
+and of image-based lighting in docs/shading.md.
 
     python -m bench.ibl_gallery [--size 320] [--device NAME]
 

@@ -15,7 +15,7 @@ import statistics
 
 import numpy as np
 
-from clrender.common import SPONZA, SPONZA_CAMERA, medians, require_scene, time_renders, write_record
+from .common import SPONZA, SPONZA_CAMERA, medians, require_scene, time_renders, write_record
 
 CONFIGS = (
     ("plain", {}),
@@ -104,7 +104,7 @@ def make_picture(args, scene, camera, prev):
     from PIL import Image, ImageDraw
 
     import clrender
-    from clrender.common import REPO
+    from .common import REPO
     w, h = 640, 360
     scene.ambient = 0.35                          # brighter than the benchmark's frame, for the eye
     frames = {}

@@ -32,7 +32,7 @@ from pathlib import Path
 
 import numpy as np
 
-from clrender.common import write_record
+from .common import write_record
 
 JOINTS = 6
 

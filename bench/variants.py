@@ -18,7 +18,7 @@ import numpy as np
 
 from clrender.render.pipeline import pass_ms
 
-from clrender.common import SPONZA, SPONZA_CAMERA, medians, require_scene, time_renders, write_record
+from .common import SPONZA, SPONZA_CAMERA, medians, require_scene, time_renders, write_record
 
 VARIANTS = (
     ("deferred", {}),
@@ -59,7 +59,7 @@ def main(argv=None) -> int:
     peer = None
     if not args.no_gl:
         try:
-            from clrender.gl_lights import GLLightsPeer
+            from .gl_lights import GLLightsPeer
             peer = GLLightsPeer(args.width, args.height)
             peer.upload(scene)
         except Exception as exc:                  # no EGL / moderngl: keep the clrender numbers

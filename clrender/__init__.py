@@ -11,7 +11,10 @@ def __getattr__(name):
     if name == "load_scene":
         from clrender.loaders import load_scene
         return load_scene
-    if name in ("Renderer", "RenderConfig", "Frame"):
+    if name == "RenderConfig":                  # numpy only (clrender/config.py)
+        from clrender.config import RenderConfig
+        return RenderConfig
+    if name in ("Renderer", "Frame"):
         from clrender.render import renderer
         return getattr(renderer, name)
     if name == "list_devices":

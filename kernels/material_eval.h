@@ -1,5 +1,5 @@
 /* material_eval.h: a material evaluated at VEC lanes' surface points (docs/materials.md),
- * included by surface_vec.h after its types (SceneV, BaryV, SurfaceV, vec3V).
+ * included by surface_vec.h; the types it fills are surface_types.h's.
  *
  * Per lane: base colour = factor × vertex colour × base texture; metallic-roughness
  * (MAT_METALLIC_ROUGHNESS) mapped into the report's terms: albedo = base·(1 − m), specular
@@ -16,7 +16,16 @@
 #ifndef CLRENDER_MATERIAL_EVAL_H
 #define CLRENDER_MATERIAL_EVAL_H
 
+#include "surface_types.h"     /* SceneV, BaryV, SurfaceV, vec3V */
+#include "texture_vec.h"       /* trilinearV, FootprintV */
 #include "brdf.h"              /* DIELECTRIC_F0, MIN_ROUGHNESS (clrender/scene/model.py), gltf_lanes */
+
+#ifndef SURFACE_TEXTURES
+#define SURFACE_TEXTURES 1        /* 0: base colour = material factor only, no texture read */
+#endif
+#ifndef SURFACE_EXTRAS
+#define SURFACE_EXTRAS 1          /* 0: emissive and occlusion left at their factors, no texture read */
+#endif
 
 /* The lanes `on` whose material has a texture in slot `slot` (*tex: its index, per lane). */
 static inline intV slot_lanes(const SceneV* sc, intV mat, int slot, intV on, intV* tex)

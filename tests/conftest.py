@@ -170,7 +170,7 @@ def make_renderer(device):
 def pytest_terminal_summary(terminalreporter):
     """How many OpenCL programs this session built, by kernel file (docs/variants.md counts them)."""
     import sys
-    device_module = sys.modules.get("clrender.device")
+    device_module = sys.modules.get("clrender.device.core")
     if device_module is None or not device_module.Device.build_count:
         return
     per_file: dict = {}

@@ -1,4 +1,6 @@
-"""The fuzzing tier's inputs (tests/test_fuzz.py): small valid seed files and the mutations applied
+"""One subject (the fuzzing tier's seed files and the mutations applied to them) in one file: 631 lines.
+
+The fuzzing tier's inputs (tests/test_fuzz.py): small valid seed files and the mutations applied
 to them. Pure Python and NumPy: no OpenCL, no clrender import.
 
 A *case* is a folder holding one format's seed files (`write_seed`), changed by a list of

@@ -1,4 +1,4 @@
-"""Anti-aliasing (README "Anti-aliasing", docs/post.md): the edge-smoothing filter (edge_aa.cl) and
+"""Anti-aliasing (docs/post.md "Anti-aliasing"): the edge-smoothing filter (edge_aa.cl) and
 FXAA (fxaa.cl) against a supersampled ground truth (tests/reference/aa.py).
 
 The truth is the aa_scene (flat-coloured opaque bars, a rotated square, a folded roof, a wall

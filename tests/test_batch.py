@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from clrender import Renderer, load_scene
-from clrender.outputs import aov_io
+from clrender.outputs import video  # write_video and its ffmpeg check
 from clrender.cli import main as cli, batch as cli_batch
 from clrender.batch.jobs import render_frames
 
@@ -167,7 +167,7 @@ def test_resume_rerenders_what_went_missing(device, tmp_path, capsys):
     (["--frames", "0:3", "--resources", "GPU=1"], "--resources goes with --scheduler"),
 ])
 def test_bad_batch_input_is_one_line_before_rendering(tmp_path, capsys, monkeypatch, extra, message):
-    monkeypatch.setattr(aov_io, "ffmpeg_available", lambda: False)
+    monkeypatch.setattr(video, "ffmpeg_available", lambda: False)
     monkeypatch.setattr(cli_batch, "SCHEDULER_TIMEOUT_S", 2)
     rendered = []
     monkeypatch.setattr("clrender.batch.jobs.render_task", lambda task: rendered.append(task))

@@ -391,7 +391,7 @@ def test_exr_with_a_bad_size_header_is_one_line(tmp_path, capfd):
     data[at:at + 16] = struct.pack("<4i", 0, 0, 15, 2 ** 20)          # 2^20 rows in a 380-byte file
     bad = tmp_path / "bad.exr"
     bad.write_bytes(bytes(data))
-    from clrender.scene.environment import read_exr
+    from clrender.scene.environment_files import read_exr
     capfd.readouterr()
     with pytest.raises(SceneError) as info:
         read_exr(bad)

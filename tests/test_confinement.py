@@ -292,7 +292,7 @@ def test_toml_mesh_and_environment_outside(dirs, opened):
     assert "mesh[0].path" in msg
     (scene / "b.toml").write_text(f'[[mesh]]\npath = "{outside / "tri.obj"}"\n')
     _refused(scene / "b.toml", str(outside / "tri.obj"), "b.toml", opened, outside)
-    from clrender.scene.environment import write_rgbe
+    from clrender.scene.environment_files import write_rgbe
     write_rgbe(outside / "env.hdr", np.ones((4, 8, 3), np.float32))
     (scene / "tri.obj").write_text(TRI_OBJ)
     (scene / "c.toml").write_text('[[mesh]]\npath = "tri.obj"\n[environment]\nsource = "../outside/env.hdr"\n')

@@ -179,7 +179,7 @@ def test_pycolmap_reads_the_model(exports):
         np.testing.assert_allclose(rec.cameras[image.camera_id].calibration_matrix(), view.K, atol=1e-9)
 
 
-@pytest.mark.parametrize("doc", ["docs/datasets.md", "README.md"])
+@pytest.mark.parametrize("doc", ["docs/datasets.md"])
 def test_docs_example_runs(exports, tmp_path, monkeypatch, capsys, doc):
     text = (REPO / doc).read_text()
     code = re.search(r"<!-- example: load-nerf-export -->\n```python\n(.*?)```", text, re.S).group(1)

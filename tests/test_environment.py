@@ -1,4 +1,6 @@
-"""HDR environments, the host side (clrender/scene/environment.py): OpenEXR and Radiance RGBE files,
+"""One subject (HDR environments, the host side) in one file: 528 lines.
+
+HDR environments, the host side (clrender/scene/environment.py): OpenEXR and Radiance RGBE files,
 validation, the direction convention's NumPy reference (`lookup`), the studio environment, and
 how scenes, TOML files, load_scene's default and the CLI get one. Also: a glTF texture file that
 is missing or unreadable is a warning, not an error. Nothing here renders but the last test."""
@@ -13,8 +15,8 @@ import pytest
 
 from clrender.cli import main as cli
 from clrender.scene.environment import (
-    Environment, decode_rgbe, describe, directions_of_texels, encode_rgbe, load_environment, lookup, read_exr,
-    read_rgbe, studio_environment, write_rgbe)
+    Environment, describe, directions_of_texels, load_environment, lookup, studio_environment)
+from clrender.scene.environment_files import decode_rgbe, encode_rgbe, read_exr, read_rgbe, write_rgbe
 from clrender.errors import SceneError
 from clrender.loaders import load_scene
 from clrender.scene.model import Scene

@@ -181,7 +181,7 @@ def test_a_build_error_names_the_program_and_device(device, tmp_path, monkeypatc
         if f.is_file():
             (kernels / f.name).write_bytes(f.read_bytes())
     (kernels / "broken.cl").write_text("kernel void broken(global int* x) { x[0] = undefined_name; }\n")
-    monkeypatch.setattr(clrender.device, "kernels_dir", lambda: kernels)
+    monkeypatch.setattr(clrender.device.core, "kernels_dir", lambda: kernels)
     dev = Device.get(device.id)
     with pytest.raises(clrender.device.core.DeviceError) as info:
         dev.kernel("broken.cl", "broken").get_work_group_info

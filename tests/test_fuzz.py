@@ -1,4 +1,6 @@
-"""The fuzzing tier (issue 34, item 9): valid glTF, GLB, OBJ (+MTL, PNG), TOML, EXR and HDR files,
+"""One subject (the fuzzing tier: its worker, strategies, cases and the regressions it found) in one file: 572 lines.
+
+The fuzzing tier (issue 34, item 9): valid glTF, GLB, OBJ (+MTL, PNG), TOML, EXR and HDR files,
 mutated by hypothesis (tests/fuzz_files.py: truncation, bit flips, huge counts and sizes, bad
 offsets and lengths, hostile path strings, type confusion, deep nesting), each loaded and, when
 it loads, rendered at 16x12 in a worker process (tests/fuzz_worker.py). Every case must end in
@@ -463,7 +465,7 @@ def test_rgbe_header_size_is_checked_before_allocating(tmp_path, monkeypatch, re
     """A Radiance file whose resolution line claims far more pixels than its bytes can hold is refused
     before the image is allocated (the reader allocated H x W x 4 bytes first: 7 GB for a 100-byte file)."""
     import tracemalloc
-    from clrender.scene.environment import read_rgbe
+    from clrender.scene.environment_files import read_rgbe
     from clrender.errors import SceneError
     monkeypatch.setenv("CLRENDER_MAX_MEMORY", "64M")
     path = tmp_path / "big.hdr"
@@ -556,7 +558,7 @@ def test_obj_mtl_errors_name_the_file(tmp_path, obj, mtl, words):
 def test_rgbe_messages_do_not_echo_a_garbled_header(tmp_path, header):
     """A bit flip in the resolution line made it run into the pixel bytes: the message quoted 1,300
     characters of binary; now a short excerpt."""
-    from clrender.scene.environment import read_rgbe
+    from clrender.scene.environment_files import read_rgbe
     from clrender.errors import SceneError
     path = tmp_path / "garbled.hdr"
     if header.startswith(b"FORMAT="):

@@ -138,6 +138,6 @@ def test_layout_markdown_lists_every_field():
 
 
 def test_readme_layout_table_is_generated_from_the_layout():
-    readme = (Path(__file__).resolve().parents[1] / "README.md").read_text()
+    readme = (Path(__file__).resolve().parents[1] / "docs" / "gbuffer.md").read_text()
     start, end = readme.index("<!-- gbuffer-layout -->"), readme.index("<!-- /gbuffer-layout -->")
     assert readme[start:end].split("\n", 1)[1].strip() == gb.layout_markdown()

@@ -1,4 +1,6 @@
-"""glTF materials and vertex attributes at the loader level (issue 13; docs/materials.md).
+"""One subject (glTF materials and vertex attributes at the loader level) in one file: 514 lines.
+
+glTF materials and vertex attributes at the loader level (issue 13; docs/materials.md).
 
 Every glTF 2.0 material property (+ KHR_materials_emissive_strength, KHR_materials_unlit,
 KHR_texture_transform) into `Material`, texture sRGB flags, COLOR_0 / TEXCOORD_n / TANGENT into

@@ -184,7 +184,7 @@ def test_pip_pocls_own_icd_file_is_not_reported(monkeypatch, tmp_path):
 
 
 def test_no_device_error_names_the_broken_icds(monkeypatch, tmp_path):
-    from clrender.device import core as device
+    from clrender.device import choice as device
     monkeypatch.setenv(icd.ENV_VENDORS, str(_broken_vendors(tmp_path)))
     with pytest.raises(device.DeviceError) as info:
         device.match_devices("anything", devices=[])
@@ -210,7 +210,7 @@ def test_devices_command_reports_broken_icds_and_lists_the_rest(tmp_path):
 def test_a_platform_whose_devices_cannot_be_listed_is_named_once(monkeypatch):
     import pyopencl as cl
 
-    from clrender.device import core as device
+    from clrender.device import choice as device
 
     class Broken:
         name = "Broken Platform"

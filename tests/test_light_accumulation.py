@@ -5,7 +5,7 @@ shaded), and the (pixel, light) pair statistics of every mode.
 
 * both render what "tiled" renders (within the tiled == brute force tolerance; in practice the
   same bits: a light a list adds or a stencil removes contributes exactly 0), on the demo scene,
-  on the room of tests/test_lighting.py with its hard cases and up to 4096 point and spot lights,
+  on the room of tests/lighting_cases.py with its hard cases and up to 4096 point and spot lights,
   and against the NumPy shading reference;
 * stencil's evaluated pairs are, pixel by pixel, the NumPy count of lights reaching the pixel
   (d² < r², inside a spot's cone) on positions rebuilt from the depth AOV; only pairs within a
@@ -27,7 +27,7 @@ from clrender import Camera
 from clrender.render import memory
 from clrender.abi import structs
 from reference import shading as ref
-from test_lighting import (AMBIENT, BRUTE, CAMERA, lit_scene, reference_scene_lights, render, room_scene,
+from lighting_cases import (AMBIENT, BRUTE, CAMERA, lit_scene, reference_scene_lights, render, room_scene,
                            light_array, sector_bounding_sphere)
 
 MODES = ("quads", "stencil")

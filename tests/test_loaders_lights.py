@@ -1,4 +1,6 @@
-"""Lights from scene files: glTF KHR_lights_punctual and TOML [[light]] / [lights] / ambient.
+"""One subject (lights from scene files; glTF and TOML share one glTF writer) in one file: 556 lines.
+
+Lights from scene files: glTF KHR_lights_punctual and TOML [[light]] / [lights] / ambient.
 
 Expected light placements are computed here independently of the loader: node world matrices are
 composed from the JSON TRS by walking the parent chain, and rotations use the quaternion

@@ -1,4 +1,6 @@
-"""Small-frame tier that also runs under the Oclgrind simulator (`pytest -m oclgrind --device oclgrind`).
+"""One subject (the Oclgrind tier: every kernel on tiny frames; .ci/run runs it by its marker) in one file: 621 lines.
+
+Small-frame tier that also runs under the Oclgrind simulator (`pytest -m oclgrind --device oclgrind`).
 
 Every kernel of the pipeline runs here on tiny frames: setup (with near clipping), binning,
 fine raster (with an alpha-masked, textured material) and the G-buffer resolve, lighting, SSAO,
@@ -213,7 +215,7 @@ def transparent_stack_scene():
     40-degree cone reaches the middle of the frame, both the front glass and the stack) and two
     point lights.
     384·2 + 64 + 64·20 fragments: more than a fresh A-buffer holds (2 per pixel)."""
-    from test_transparency import build_scene, point_lights
+    from transparency_cases import build_scene, point_lights
     rng = np.random.default_rng(3)
     glass = lambda name, rgb, a: Material(name, (*rgb, 1.0), opacity=a, specular_intensity=0.4, specular_power=12.0)
     parts = [(pixel_rect(0, TW, 0, TH, 44.0), None, Material("wall", (0.7, 0.7, 0.7, 1.0), specular_intensity=0.2)),
@@ -368,7 +370,7 @@ def test_hatching_kernel(device, capfd, scale):
     assert_no_device_diagnostics(capfd)
 
 
-# -- anti-aliasing (README "Anti-aliasing"): edge_aa.cl and fxaa.cl on a tiny frame ----------------
+# -- anti-aliasing (docs/post.md "Anti-aliasing"): edge_aa.cl and fxaa.cl on a tiny frame ----------------
 
 def test_anti_aliasing_kernels(device, capfd):
     """tonemap_ldr -> edge_detect, edge_blur -> fxaa_luma, fxaa -> encode on tests/reference/aa.py's

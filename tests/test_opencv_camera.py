@@ -16,7 +16,7 @@ from clrender.scene.model import SceneObject
 from reference.geometry import uv_sphere
 from reference import shading as ref
 
-import test_lighting as lighting
+import lighting_cases as lighting
 import test_shadows as shadows
 
 

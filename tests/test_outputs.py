@@ -10,6 +10,7 @@ import pytest
 
 import clrender
 from clrender.outputs import aov_io
+from clrender.outputs import video  # write_video and its ffmpeg check (moved out of aov_io)
 from clrender.cli import main as cli
 from clrender.abi.gbuffer import linear_to_srgb8
 
@@ -206,14 +207,14 @@ def test_video_bad_input(orbit, tmp_path, monkeypatch):
         aov_io.write_video(tmp_path / "v.gif", [orbit[0].image, orbit[1].image[:, :-2]])
     with pytest.raises(ValueError, match="no frames"):
         aov_io.write_video(tmp_path / "v.gif", [])
-    monkeypatch.setattr(aov_io, "ffmpeg_available", lambda: False)
+    monkeypatch.setattr(video, "ffmpeg_available", lambda: False)
     with pytest.raises(RuntimeError, match="imageio-ffmpeg"):
         aov_io.write_video(tmp_path / "v.mp4", orbit)
     assert list(tmp_path.iterdir()) == []
 
 
 def test_cli_missing_ffmpeg_is_one_line_error_before_rendering(tmp_path, capsys, monkeypatch):
-    monkeypatch.setattr(aov_io, "ffmpeg_available", lambda: False)
+    monkeypatch.setattr(video, "ffmpeg_available", lambda: False)
     rc = cli.main(["render", str(DEMO), "-o", str(tmp_path / "x.png"), "--video", str(tmp_path / "v.mp4"), "-q"])
     assert rc != 0
     err = capsys.readouterr().err.strip().splitlines()

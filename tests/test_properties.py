@@ -27,7 +27,7 @@ from helpers import SHADING_TOL_RANDOM
 from clrender import Camera, Material, Scene
 from clrender.abi import structs
 from clrender.abi.gbuffer import linear_to_srgb8
-from clrender.scene.model import vertex_normals
+from clrender.scene.geometry import vertex_normals
 from reference import shading as ref_shading
 from reference.raster import rasterize
 from test_raster import make_soup, soups

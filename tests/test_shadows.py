@@ -276,12 +276,13 @@ def test_atlas_packs_many_sizes_and_fails_loudly(make_renderer):
 
 def test_atlas_beyond_device_memory_is_a_clear_error(device, monkeypatch):
     """The atlas is sized by the scene's lights at render time: checked before allocating."""
+    import clrender.device.limits
     import clrender.render.memory
     scene = occluder_scene()
     scene.add_spot_light((1.0, 7.0, 3.0), SPOT["direction"], (5, 5, 5), 20, 30, 42, shadow=True,
                          shadow_map_size=1024)
     renderer = clrender.Renderer(W, H, device=device.id)     # its own: the limit applies after construction
-    monkeypatch.setattr(clrender.render.memory, "limits", lambda dev: (1 << 40, 1 << 20))
+    monkeypatch.setattr(clrender.device.limits, "limits", lambda dev: (1 << 40, 1 << 20))
     with pytest.raises(clrender.render.memory.DeviceMemoryError, match=r"shadow atlas .* needs 4194304 bytes"):
         renderer.render(scene, CAMERA)
 

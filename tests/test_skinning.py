@@ -1,4 +1,6 @@
-"""Skins and morph targets posed on the device (kernels/pose.cl, clrender/passes/pose.py) against the
+"""One subject (skins and morph targets posed on the device against one NumPy reference) in one file: 536 lines.
+
+Skins and morph targets posed on the device (kernels/pose.cl, clrender/passes/pose.py) against the
 independent NumPy reference (tests/reference/skinning_reference.py) on generated files (random joint
 hierarchies, 1-8 influences over two weight sets, mirrored joints, morph + skin, sparse morph
 accessors, node.weights, STEP / CUBICSPLINE / LINEAR channels) and on the Khronos RiggedSimple and

@@ -29,7 +29,7 @@ from clrender.passes.second_geometry import SAMPLE_PATTERNS, sample_offsets
 from reference import aa
 from reference import shading as ref
 from reference.raster import rasterize
-from test_lighting import reference_scene_lights, room_scene
+from lighting_cases import reference_scene_lights, room_scene
 from test_properties import SETTINGS, light_sets, lit_soup
 from test_raster import make_soup
 

@@ -6,4 +6,5 @@ from clrender._lazy import exports
 __all__, __getattr__, __dir__ = exports(__name__, {
     "structs": ("light_dtype", "material_dtype",),
     "gbuffer": ("PLANES", "FIELDS", "linear_to_srgb8", "srgb_to_linear_lut",),
+    "aovs": ("AOV", "AOVS",),
 })

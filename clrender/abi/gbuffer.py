@@ -208,7 +208,7 @@ def decode(planes: np.ndarray, name: str, far: float = 1.0) -> np.ndarray:
 
 
 def layout_markdown() -> str:
-    """The layout as a Markdown table (README and docs are generated from this)."""
+    """The layout as a Markdown table (docs/gbuffer.md is generated from this)."""
     rows = ["| plane | bits | field | pixels | encoding | meaning |", "|---|---|---|---|---|---|"]
     who = {"any": "all", "blinn_phong": "Blinn-Phong", "gltf": "glTF BRDF"}
     for f in LAYOUT:

@@ -12,7 +12,9 @@ from pathlib import Path
 from clrender.batch import frames as _frames
 from clrender.outputs.aov_io import write_video
 from clrender.batch.jobs import CameraOverride, Outputs, plan_tasks, run_tasks
-from clrender.cli.main import PROG, CLIError, _note, _one_line, allowed_folders, check_output_options
+from clrender.cli.common import (
+    PROG, CLIError, _note, _one_line, allowed_folders, check_output_options, check_outputs_spare_inputs,
+    check_writable, input_files)
 
 SCHEDULER_TIMEOUT_S = 10
 
@@ -42,8 +44,7 @@ def _frame_numbers(args, fps: float) -> range:
 
 def _check_writable(folders) -> None:
     """Create each output folder and write a probe file in it: an unwritable output fails now,
-    not after the first frame has rendered (clrender.cli.check_writable)."""
-    from clrender.cli.main import check_writable
+    not after the first frame has rendered (clrender.cli.common.check_writable)."""
     check_writable(folders)
 
 
@@ -137,7 +138,6 @@ def cmd_render_frames(args, options: dict) -> int:
     # Every file the scenes read (loaded here once: an in-process job renders from this cache) must
     # survive the job: no image, AOV, manifest or video may be written over one
     from clrender.batch.jobs import _scene
-    from clrender.cli.main import check_outputs_spare_inputs, input_files
     scenes = []
     for s in args.scenes:
         try:

@@ -15,7 +15,10 @@ import numpy as np
 
 from clrender.outputs.aov_io import atomic_write
 from clrender.batch.jobs import VERSION, FrameTask, Outputs, job_signature, scene_size
-from clrender.cli.main import PROG, CLIError, _note, allowed_folders, check_output_options, render_options
+from clrender.cli.common import (
+    PROG, CLIError, _note, allowed_folders, check_output_options, check_outputs_spare_inputs, input_files,
+    render_options)
+from clrender.cli.batch import _check_writable, run_job
 from clrender.cli.parser import (
     _aov_list, _finite_float, _fov, _non_negative_int, _positive_float, _positive_int, add_batch_options,
     add_render_options)
@@ -142,7 +145,6 @@ def _check_depth_range(views, bounds, scale: float) -> None:
 
 def cmd_dataset(args) -> int:
     from clrender.batch.jobs import _scene
-    from clrender.cli.batch import _check_writable, run_job
 
     options = render_options(args)                  # checks the scene file and every render flag
     check_output_options(args, [])                  # --exr needs OpenEXR
@@ -168,7 +170,6 @@ def cmd_dataset(args) -> int:
     views = parse_documents(docs, root)            # the reader's cameras, from the very texts written below
     if "depth" in aovs:
         _check_depth_range(views, bounds, args.depth_scale)
-    from clrender.cli.main import check_outputs_spare_inputs, input_files
     inputs = input_files([scene], [(args.cameras, f"--cameras {args.cameras}")])   # and what the scene reads
     outputs = Outputs(aovs, exr=args.exr, layout="dataset", depth_scale=args.depth_scale)
     tasks = [FrameTask(scene=scene_path, frame=v.index, time=0.0, dt=1.0 / FPS, image=str(v.image), outputs=outputs,

@@ -1,30 +1,19 @@
 """The command line's grammar: `clrender render | devices | check | info` and their options'
-types (`dataset`'s: clrender/cli/dataset.py, sharing add_render_options and add_batch_options).
-`clrender.cli` runs the commands; this module only describes and checks the arguments."""
+types (`dataset`'s: clrender/cli/dataset.py, sharing add_render_options and add_batch_options;
+clrender/cli/main.py's build_parser puts the subcommands together). The render flags come from
+the option table (clrender/config.py). This module only describes and checks the arguments."""
 from __future__ import annotations
 
 import argparse
 import math
 
+from clrender.abi.aovs import WRITTEN as WRITTEN_AOVS
 
-PROG = "clrender"
-ENV_DEBUG = "CLRENDER_DEBUG"
-IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg")
-# AOVs the CLI writes: every Frame AOV but `image`, which is the main output.
-def _aov_names():
-    from clrender.render.renderer import Frame
-    return tuple(n for n in Frame.AOV_NAMES if n != "image")
+from clrender.cli.common import ENV_DEBUG, IMAGE_SUFFIXES, PROG, CLIError  # noqa: F401  (re-exported)
+from clrender.config import OPTIONS
 
-
-AOVS = _aov_names()
-
-
-class CLIError(Exception):
-    """A user-facing error: printed as one line, exit status `code`."""
-
-    def __init__(self, message: str, code: int = 1):
-        super().__init__(message)
-        self.code = code
+# AOVs the CLI writes: every AOV of the table but `image`, which is the main output.
+AOVS = WRITTEN_AOVS
 
 
 class _Parser(argparse.ArgumentParser):
@@ -103,8 +92,6 @@ def add_allow_outside(p) -> None:
 
 def add_render_options(p) -> None:
     """The size, device and RenderConfig flags `render` and `dataset` share (cli.render_options reads them)."""
-    from clrender.render.renderer import (
-        LIGHT_BUFFER_PRECISION, LIGHT_BUFFER_SPECULAR, LIGHT_CULLING, PIPELINES, SHADING, TRANSPARENCY)
     add_allow_outside(p)
     p.add_argument("--width", type=_positive_int, metavar="W",
                    help="image width (default: the scene's [render] width, else 1280)")
@@ -114,72 +101,25 @@ def add_render_options(p) -> None:
                    help="OpenCL device: P:D, an implementation (intel, pocl, oclgrind, nvidia, ...), pip or "
                         "system, or a name substring (default: $CLRENDER_DEVICE, else a GPU, else the best "
                         "usable CPU runtime); see `clrender devices`")
-    p.add_argument("--tile-size", type=int, metavar="N", help="raster tile size in pixels: 8, 16 or 32 (default 8)")
-    p.add_argument("--light-tile-size", type=int, metavar="N", help="light-culling tile size: 8, 16 or 32 (default 32)")
-    p.add_argument("--light-culling", choices=LIGHT_CULLING,
-                   help="light lists per tile: culled against tile frusta, every light, each light's screen "
-                        "quad, or tiled lists with per-pixel stencil bits (default tiled; "
-                        "docs/light_accumulation.md)")
-    p.add_argument("--pipeline", choices=PIPELINES,
-                   help="renderer variant: deferred shading, Engel's light pre-pass, or Trebilco's light-indexed "
-                        "deferred (default deferred; docs/variants.md)")
-    p.add_argument("--shading", choices=SHADING,
-                   help="auto: glTF metallic-roughness materials with the glTF 2.0 BRDF, the others Blinn-Phong; "
-                        "blinn_phong: the report's model for every material (default auto; docs/shading.md)")
-    p.add_argument("--msaa", type=int, metavar="N",
-                   help="with --pipeline light_prepass: colour sub-samples per pixel, 1, 2, 4 or 8 (default 1)")
-    p.add_argument("--light-buffer-specular", choices=LIGHT_BUFFER_SPECULAR,
-                   help="with --pipeline light_prepass: specular RGB, or its luminance coloured by the diffuse "
-                        "light (default rgb)")
-    p.add_argument("--light-buffer-precision", choices=LIGHT_BUFFER_PRECISION,
-                   help="with --pipeline light_prepass: light buffer of floats or halves (default float32)")
-    p.add_argument("--reuse-visibility", action="store_true", default=None,
-                   help="with --pipeline light_prepass or light_indexed: read the first pass's visibility "
-                        "instead of rasterizing again (same pixels; not the report's algorithm; default off)")
-    p.add_argument("--tonemap", choices=("reinhard", "aces", "clamp"), help="tone-mapping operator (default reinhard)")
-    p.add_argument("--exposure", type=float, metavar="X", help="exposure multiplier before tone mapping (default 1)")
-    p.add_argument("--ssao", action="store_true", default=None, help="screen-space ambient occlusion (default off)")
-    p.add_argument("--ssao-radius", type=float, metavar="R", help="with --ssao: its radius in world units (default 1)")
-    p.add_argument("--ssao-strength", type=float, metavar="S", help="with --ssao: ao = 1 - S·occlusion (default 1)")
-    p.add_argument("--transparency", choices=TRANSPARENCY,
-                   help="how BLEND materials are drawn: per-pixel sorted fragment lists, depth peeling, or "
-                        "a stipple pattern in the G-buffer (default abuffer)")
-    p.add_argument("--peel-layers", type=_positive_int, metavar="N",
-                   help="with --transparency depth_peeling: layers peeled per pixel, 1..64 (default 4)")
-    p.add_argument("--max-fragments-per-pixel", type=_non_negative_int, metavar="K",
-                   help="with the A-buffer: keep only the K nearest transparent fragments of a pixel "
-                        "(default 0: all of them)")
-    p.add_argument("--refraction", action="store_true", default=None,
-                   help="distort what lies behind transparent surfaces by their materials' refraction "
-                        "(default off)")
-    p.add_argument("--edge-aa", action="store_true", default=None,
-                   help="the report's edge-smoothing filter: blur along G-buffer edges (default off)")
-    p.add_argument("--edge-depth-threshold", type=float, metavar="T",
-                   help="with --edge-aa: relative view-depth jump that marks an edge (default 0.05)")
-    p.add_argument("--edge-normal-threshold", type=float, metavar="DEG",
-                   help="with --edge-aa: normal angle in degrees that marks an edge (default 30)")
-    p.add_argument("--fxaa", action="store_true", default=None,
-                   help="FXAA: luminance-edge anti-aliasing of the tone-mapped image (default off)")
-    p.add_argument("--supersample", type=_positive_int, metavar="K",
-                   help="render at K·W × K·H and filter down in linear HDR, K in 1..4 (default 1)")
-    p.add_argument("--supersample-filter", choices=("box", "lanczos2", "mitchell"),
-                   help="with --supersample: the resolve filter (default box)")
-    p.add_argument("--bloom", action="store_true", default=None,
-                   help="bloom: HDR colour above --bloom-threshold, blurred and added back (default off)")
-    p.add_argument("--bloom-threshold", type=float, metavar="T", help="with --bloom: linear HDR threshold (default 1)")
-    p.add_argument("--bloom-strength", type=float, metavar="S", help="with --bloom: strength (default 0.1)")
-    p.add_argument("--bloom-radius", type=float, metavar="PX", help="with --bloom: radius in pixels (default 16)")
-    p.add_argument("--motion-blur", action="store_true", default=None,
-                   help="motion blur along the per-pixel velocity; give motion with --previous-eye/"
-                        "--previous-target (default off)")
-    p.add_argument("--shutter", type=float, metavar="F", help="with --motion-blur: exposure in frames (default 0.5)")
-    p.add_argument("--motion-blur-samples", type=_positive_int, metavar="N",
-                   help="with --motion-blur: samples along the velocity, 2..64 (default 8)")
-    p.add_argument("--hatching", action="store_true", default=None,
-                   help="the report's non-photorealistic hatching of the image (default off)")
-    p.add_argument("--hatching-scale", type=float, metavar="S", help="with --hatching: stroke scale (default 1)")
-    p.add_argument("--hatching-saturation", type=float, metavar="S",
-                   help="with --hatching: colour kept, 0 (ink on white) .. 1 (default 0.3)")
+    for option in OPTIONS:                      # the RenderConfig options that have a flag
+        if option.cli_flag is not None:
+            p.add_argument(option.cli_flag, help=option.help_text(), **_flag_kind(option))
+
+
+def _flag_kind(option) -> dict:
+    """argparse's view of an option: a switch (left None when not given, so the scene's [render]
+    value stands), a choice, or a number whose type names the smallest value it takes."""
+    if option.cli_switch:
+        return {"action": "store_true", "default": None}
+    if option.type is str:
+        return {"choices": option.choices}
+    if option.type is float:
+        kind = float
+    elif option.choices is not None:            # tile sizes, msaa: RenderConfig names the choices
+        kind = int
+    else:
+        kind = _positive_int if option.range[0] >= 1 else _non_negative_int
+    return {"type": kind, "metavar": option.metavar}
 
 
 def add_batch_options(g) -> None:
@@ -193,12 +133,16 @@ def add_batch_options(g) -> None:
                    help="with --scheduler: run only on workers with these Dask resources (e.g. GPU=1)")
 
 
-def build_parser() -> argparse.ArgumentParser:
+def root_parser():
+    """(the `clrender` parser, its subcommands' action): main.build_parser adds each command."""
     parser = _Parser(prog=PROG, description="clrender: a tiled deferred renderer whose pixels are "
                                             "computed by OpenCL kernels.")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
     sub.required = True
+    return parser, sub
 
+
+def add_render_parser(sub) -> None:
     r = sub.add_parser("render", help="render scene files to images (and AOVs)",
                        description="Render each SCENE with one renderer. OUT is an image file (.png/.jpg) "
                                    "for one scene, or a directory (OUT/<scene-name>.png) or a pattern "
@@ -249,7 +193,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="frames per second: frame f shows time f/fps, and the video's rate (default 24)")
     b = r.add_argument_group("frames and batches", "Render an animation or a range of frames (frame f at time "
                              "f/fps; glTF animations and TOML keyframes), with a progress bar, a manifest.json "
-                             "in the output folder, and optionally on a Dask cluster (README: Batch and cluster "
+                             "in the output folder, and optionally on a Dask cluster (docs/batch.md: Batch and cluster "
                              "rendering).")
     b.add_argument("--frames", metavar="A:B[:STEP]|N|all",
                    help="frames A..B-1 (every STEP-th), frame N, or all of the scene's animation")
@@ -257,6 +201,8 @@ def build_parser() -> argparse.ArgumentParser:
     add_batch_options(b)
     r.add_argument("-q", "--quiet", action="store_true", help="no progress or notes on stderr")
 
+
+def add_devices_parser(sub) -> None:
     d = sub.add_parser("devices", help="list OpenCL devices and whether clrender's kernels build on them",
                        description="List every OpenCL device with the limits clrender relies on, mark the "
                                    "default one, and try building clrender's kernels on each.")
@@ -267,10 +213,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="list without building clrender's kernels on each device (KERNELS: not probed; "
                         "no default mark, which needs the probe)")
 
-    from clrender.cli import dataset as cli_dataset, setup as cli_setup
-    cli_dataset.add_parser(sub)         # dataset
-    cli_setup.add_parsers(sub)          # warmup, cache
 
+def add_check_parser(sub) -> None:
     c = sub.add_parser("check", help="render fixed cases on several devices and compare every AOV")
     c.add_argument("--device", default="all", metavar="NAME|all",
                    help="devices to compare (default all, simulators such as Oclgrind included)")
@@ -283,6 +227,8 @@ def build_parser() -> argparse.ArgumentParser:
                         "implementation cannot pass as agreement)")
     c.add_argument("-q", "--quiet", action="store_true", help="no progress on stderr")
 
+
+def add_info_parser(sub) -> None:
     i = sub.add_parser("info", help="describe a scene file",
                        description="Triangles, vertices, meshes, materials, textures, bounds and camera "
                                    "of a scene file; for glTF also its skins, morph targets, animations and "
@@ -290,4 +236,3 @@ def build_parser() -> argparse.ArgumentParser:
     i.add_argument("scene", metavar="SCENE")
     i.add_argument("--json", action="store_true", help="print JSON instead of text")
     add_allow_outside(i)
-    return parser

@@ -11,6 +11,7 @@ import pyopencl as cl
 import pyopencl.array as cla
 
 from clrender.device import capabilities
+from clrender.device.buffers import fill_zero
 
 
 class PrefixSum:
@@ -33,7 +34,6 @@ class PrefixSum:
             raise ValueError(f"scan of {n} items over buffers of {counts.size} and {offsets.size}")
         queue = queue or counts.queue
         if n == 0:
-            from clrender.passes.base import fill_zero      # (passes.base imports this module)
             fill_zero(total, queue)
             return
         self._scan(queue, 0, counts.data, n, offsets.data, total.data)

@@ -19,16 +19,13 @@ from typing import Callable, Optional, Sequence
 import numpy as np
 
 from clrender.scene.camera import Camera
-from clrender.scene.model import TEXTURE_SLOTS, Material, Scene, SceneError, Texture, vertex_normals
-from clrender.scene.tangents import generate_tangents
+from clrender.scene.geometry import vertex_normals
+from clrender.scene.model import TEXTURE_SLOTS, Material, Scene, SceneError, Texture
+from clrender.scene.tangents import NO_TANGENT, generate_tangents
 
 __all__ = ["SceneError", "Piece", "fail", "transform_points", "transform_normals", "transform_tangents",
            "world_piece", "assemble", "image_to_rgba", "decode_image", "load_images", "start_images", "check_faces",
            "trimesh_load", "flip_v", "shift_textures", "concat_vertex_attributes", "NO_TANGENT"]
-
-# The tangent of a vertex that has none (no TANGENT, no normal map): zero xyz, which the G-buffer
-# resolve treats as "no tangent frame" (the normal map is not applied there); w = +1.
-NO_TANGENT = (0.0, 0.0, 0.0, 1.0)
 
 
 def fail(path, message: str) -> SceneError:

@@ -22,11 +22,13 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Iterator, Optional, Sequence
 
+from clrender.budget import Budget
+
 
 @dataclass
 class LoadContext:
     allow: tuple[Path, ...] = ()
-    budget: Optional[object] = None      # clrender.loaders.budget.Budget (loading() makes it)
+    budget: Optional[Budget] = None      # loading() makes it; clrender.loaders.budget.current()
     images: dict = field(default_factory=dict)
     scene_dir: Optional[Path] = None     # the resolved folder of the file load_scene was called with
     files: dict = field(default_factory=dict)    # resolved Path -> None (an ordered set), see `record`
@@ -53,14 +55,12 @@ def loading(allow: Optional[Sequence] = None) -> Iterator[LoadContext]:
             yield outer
             return
         if outer.budget is None:        # made now, so the nested load charges the same one
-            from clrender.loaders.budget import Budget
             outer.budget = Budget()
         ctx = LoadContext(allow=outer.allow + extra, budget=outer.budget, images=outer.images,
                           scene_dir=outer.scene_dir, files=outer.files)
     else:
         # the budget now, not lazily: a bad CLRENDER_MAX_MEMORY is its own one-line ValueError,
         # before any file is read, rather than an error inside some loader
-        from clrender.loaders.budget import Budget
         ctx = LoadContext(allow=extra, budget=Budget())
     token = _CURRENT.set(ctx)
     try:

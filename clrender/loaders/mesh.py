@@ -20,8 +20,8 @@ from typing import Optional
 
 import numpy as np
 
-from clrender.scene.model import (
-    BAD_COORDINATES, Material, Scene, SceneError, SceneObject, Texture, bad_vertex, coordinates_text)
+from clrender.scene.geometry import BAD_COORDINATES, bad_vertex, coordinates_text
+from clrender.scene.model import Material, Scene, SceneError, SceneObject, Texture
 from clrender.loaders import confine
 from clrender.loaders.common import (
     Piece, assemble, check_faces, decode_image, fail, flip_v, load_images, trimesh_load, trimesh_vertex_normals,

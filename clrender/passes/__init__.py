@@ -1,4 +1,5 @@
-"""Render passes: one pass module per kernel file (kernels/<name>.cl <-> passes/<name>.py)."""
+"""Render passes: one pass module per kernel file (kernels/<name>.cl <-> passes/<name>.py), the
+contract in base.py; _template.py <-> kernels/_template.cl is a minimal pass to copy."""
 from clrender.passes.abuffer import AbufferPass
 from clrender.passes.base import RenderPass, Resources
 from clrender.passes.binning import BinningPass

@@ -9,6 +9,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from clrender.device import limits
+from clrender.errors import DeviceMemoryError
 from clrender.passes.base import Overflow, RenderPass, empty, round_up, scan_for, zeros
 from clrender.passes.forward import (
     FORWARD_INPUTS, LAYER_PLANES, forward_args, forward_defines, forward_grid, forward_vec)
@@ -24,6 +26,16 @@ class AbufferPass(RenderPass):
     inputs = ("t_prims", "t_tile_offsets", "t_tile_counts", "t_tile_prims", "t_tile_list_capacity", "t_tiles_x",
               "vis_depth", "frag_list_len") + FORWARD_INPUTS
     outputs = ("layers",)
+
+    @classmethod
+    def runs(cls, config):
+        return config.transparency == "abuffer"
+
+    @classmethod
+    def buffer_bytes(cls, width, height, config, scene=None):
+        px = width * height
+        return {"abuffer.offsets+layers": 32 * px,
+                "abuffer.frag_depth+frag_prim": 8 * 2 * px}      # initial capacity: 2 fragments per pixel
 
     def __init__(self, device, config, fragments):
         super().__init__(device, config)
@@ -86,13 +98,11 @@ class AbufferPass(RenderPass):
             return
         total = int(self.list_len.get(queue=self.queue).sum(dtype=np.int64))
         if total > MAX_FRAGMENTS:
-            from clrender.render.memory import DeviceMemoryError
             raise DeviceMemoryError(f"the frame has {total} transparent fragments; the A-buffer holds at most "
                                     f"{MAX_FRAGMENTS} (2^31 - 1): render at a smaller size or set "
                                     f"max_fragments_per_pixel")
 
     def grow(self, name, needed):
         capacity = min(round_up(needed + needed // 4, 4096), MAX_FRAGMENTS)
-        from clrender.render.memory import check_buffer
-        check_buffer(self.device, "the A-buffer's fragment lists", needed, BYTES_PER_FRAGMENT, capacity)
+        limits.check_buffer(self.device, "the A-buffer's fragment lists", needed, BYTES_PER_FRAGMENT, capacity)
         self._allocate_fragments(capacity)

@@ -9,10 +9,10 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-import pyopencl as cl
 import pyopencl.array as cla
 
-from clrender.device import capabilities
+from clrender.device.buffers import empty, fill_zero, round_up, zeros  # noqa: F401  (re-exported for the passes)
+from clrender.device.scan import prefix_sum_for
 from clrender.device.timestamps import elapsed_ms, stamp
 
 
@@ -42,7 +42,7 @@ class Overflow:
     capacity: int
 
 
-# The scene resources a surface is evaluated from, in the order of kernels/surface_vec.h
+# The scene resources a surface is evaluated from, in the order of kernels/surface_types.h
 # SCENE_PARAMS (after the prims), as the scene upload names them (clrender/render/scene_upload.py).
 SCENE_INPUTS = ("positions", "normals", "uvs", "triangles", "materials", "texels", "srgb_lut", "tex_infos",
                 "tex_levels", "tangents", "colors", "n_vertices", "has_colors")
@@ -61,6 +61,27 @@ class RenderPass:
     name: str = ""
     inputs: tuple[str, ...] = ()
     outputs: tuple[str, ...] = ()
+    # The shadow pass makes its programs on the way (per map size, in publish): the pipeline's
+    # up-front build and first-launch progress skip it.
+    builds_on_publish: bool = False
+
+    @classmethod
+    def runs(cls, config) -> bool:
+        """Whether a pipeline for `config` has this pass. A disabled effect has no pass: it builds
+        no program, allocates nothing and launches no kernel (clrender/render/plan.py)."""
+        return True
+
+    def active(self, res: Resources) -> bool:
+        """Whether this frame launches the pass (asked after `publish`): False when the scene does
+        not use the effect (no particle system, no shadowed light, no environment)."""
+        return True
+
+    @classmethod
+    def buffer_bytes(cls, width: int, height: int, config, scene=None) -> dict:
+        """{label: bytes} of the buffers `allocate(width, height)` makes (and, given `scene`,
+        `prepare_scene` at its initial capacities): clrender/render/memory.py's estimate sums
+        them; tests/test_memory.py compares them with what the pass holds."""
+        return {}
 
     def __init__(self, device, config):
         self.device = device
@@ -68,7 +89,8 @@ class RenderPass:
         self.queue = device.queue
 
     def allocate(self, width: int, height: int) -> None:
-        """(Re)allocate resolution-dependent buffers; called once per resolution."""
+        """(Re)allocate resolution-dependent buffers; called once per resolution. Declare their
+        sizes in `buffer_bytes`."""
 
     def prepare_scene(self, scene_buffers: Resources) -> None:
         """(Re)allocate scene-size-dependent buffers; called when the scene changes."""
@@ -121,31 +143,6 @@ def view_defines(ortho: bool) -> dict:
     return {"ORTHO": 1} if ortho else {}
 
 
-def zeros(queue, n, dtype) -> cla.Array:
-    a = cla.empty(queue, max(int(n), 1), dtype)
-    fill_zero(a, queue)
-    return a
-
-
-def fill_zero(a: cla.Array, queue=None) -> None:
-    """Enqueue a = 0: clEnqueueFillBuffer, which needs no kernel (pyopencl's fill kernels cost a
-    fresh process ~40 ms to build per dtype); on Oclgrind, whose checker does not count
-    FillBuffer's output as written, pyopencl's fill kernel."""
-    queue = queue or a.queue
-    if capabilities.fill_buffer_marks_initialized(queue.device):
-        cl.enqueue_fill_buffer(queue, a.base_data, np.uint8(0), a.offset, a.nbytes)
-    else:
-        a.fill(0, queue=queue)
-
-
-def empty(queue, n, dtype) -> cla.Array:
-    return cla.empty(queue, max(int(n), 1), dtype)
-
-
-def round_up(n: int, multiple: int) -> int:
-    return (int(n) + multiple - 1) // multiple * multiple
-
-
 # Fixed work-group shapes for the kernels whose results do not depend on the shape (no local
 # memory, no barriers). PoCL compiles a kernel once per local size at its first launch with it;
 # a None local size lets PoCL pick one from the global size, so every new image size (or
@@ -169,5 +166,4 @@ def launch_2d(nx: int, ny: int, wg: tuple[int, int] = WG_2D) -> tuple[tuple[int,
 
 def scan_for(device):
     """The device's exclusive prefix sum with grand total (clrender/device/scan.py)."""
-    from clrender.device.scan import prefix_sum_for
     return prefix_sum_for(device)

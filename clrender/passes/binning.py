@@ -25,6 +25,13 @@ class BinningPass(RenderPass):
     inputs = ("prims", "prim_total", "prim_capacity")
     outputs = ("tile_counts", "tile_offsets", "tile_prims", "tile_list_capacity")
 
+    @classmethod
+    def buffer_bytes(cls, width, height, config, scene=None):
+        """Per tile: count, offset, cursor; the tile lists at their initial capacity."""
+        tiles = -(-width // config.tile_size) * -(-height // config.tile_size)
+        n_tris = None if scene is None else scene.triangle_count
+        return {"binning.tiles": 12 * tiles, "binning.tile_prims": 4 * initial_list_capacity(tiles, n_tris)}
+
     def __init__(self, device, config, tile: int | None = None, samples: int = 1):
         """tile: the tile side (default config.tile_size; shadow maps bin to their own).
         samples: bin for every msaa sub-sample point (kernels/samples.h), not only the centres."""

@@ -68,6 +68,17 @@ class BloomPass(RenderPass):
     inputs = ("color",)
     outputs = ("color",)
 
+    @classmethod
+    def runs(cls, config):
+        return bool(config.bloom)
+
+    @classmethod
+    def buffer_bytes(cls, width, height, config, scene=None):
+        levels, _, taps = bloom_levels(config.bloom_radius)
+        sizes = level_sizes(width, height, levels)
+        return {"bloom.pyramid+tmp+color+taps": 12 * width * height + 12 * sum(w * h for w, h in sizes)
+                + 12 * sizes[0][0] * sizes[0][1] + 4 * (2 * taps + 1)}
+
     def __init__(self, device, config):
         super().__init__(device, config)
         self.levels, self.sigma, self.radius = bloom_levels(float(config.bloom_radius))

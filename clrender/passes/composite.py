@@ -13,6 +13,14 @@ class CompositePass(RenderPass):
     inputs = ("color", "layers")
     outputs = ("color",)
 
+    @classmethod
+    def runs(cls, config):
+        return config.transparency != "screen_door"
+
+    @classmethod
+    def buffer_bytes(cls, width, height, config, scene=None):
+        return {"composite.color": 12 * width * height}
+
     def __init__(self, device, config):
         super().__init__(device, config)
         self.kernel = device.kernel("composite.cl", "composite", {"REFRACTION": int(config.refraction)})

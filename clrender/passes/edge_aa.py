@@ -39,6 +39,14 @@ class EdgeAaPass(RenderPass):
     inputs = ("ldr", "gbuffer")
     outputs = ("ldr", "edges")
 
+    @classmethod
+    def runs(cls, config):
+        return bool(config.edge_aa)
+
+    @classmethod
+    def buffer_bytes(cls, width, height, config, scene=None):
+        return {"edge_aa.ldr+edges+flags": 14 * width * height}
+
     def __init__(self, device, config):
         super().__init__(device, config)
         self.vec = capabilities.pixel_vector_width(device.cl_device)

@@ -15,6 +15,14 @@ class EncodePass(RenderPass):
     inputs = ("ldr", "srgb_encode")
     outputs = ("image",)
 
+    @classmethod
+    def runs(cls, config):
+        return bool(config.ldr_effects)     # else the tonemap kernel writes the image
+
+    @classmethod
+    def buffer_bytes(cls, width, height, config, scene=None):
+        return {"encode.image": 4 * width * height}
+
     def __init__(self, device, config):
         super().__init__(device, config)
         self.vec = capabilities.pixel_vector_width(device.cl_device)

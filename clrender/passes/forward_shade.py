@@ -18,6 +18,10 @@ AOV_PLANES = tuple(p for p in layout.PLANES if p not in layout.DEPTH_PLANES)
 class ForwardShadePass(ShadePass):
     name = "forward_shade"
 
+    @classmethod
+    def runs(cls, config):
+        return config.pipeline == "light_indexed"
+
     def __init__(self, device, config, ortho: bool = False):
         super().__init__(device, config, ortho)
         self.inputs = tuple(i for i in self.inputs if i != "ao") + (

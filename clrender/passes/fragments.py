@@ -8,10 +8,17 @@ from __future__ import annotations
 
 import numpy as np
 
+from clrender.abi import structs
 from clrender.device import capabilities
 from clrender.passes.base import Overflow, RenderPass, Resources, empty, view_defines
 from clrender.passes.binning import BinningPass
-from clrender.passes.setup import SetupPass
+from clrender.passes.setup import SetupPass, per_triangle_bytes
+
+
+def transparent_triangle_count(scene) -> int:
+    """Triangles with a BLEND material (they skip the G-buffer: docs/transparency.md)."""
+    blend = np.array([m.alpha_mode == "BLEND" for m in scene.materials] or [False])
+    return int(np.count_nonzero(blend[scene.triangle_material])) if scene.triangle_count else 0
 
 
 class FragmentsPass(RenderPass):
@@ -20,6 +27,21 @@ class FragmentsPass(RenderPass):
               "n_transparent_tris", "vis_depth")
     outputs = ("t_prims", "t_tile_offsets", "t_tile_counts", "t_tile_prims", "t_tile_list_capacity", "t_tiles_x",
                "frag_count", "frag_list_len", "t_range", "has_fragments")
+
+    @classmethod
+    def runs(cls, config):
+        return config.transparency != "screen_door"     # screen door: BLEND dithered into the G-buffer
+
+    @classmethod
+    def buffer_bytes(cls, width, height, config, scene=None):
+        """Per pixel: count, list length, depth range; its own setup (BLEND triangles) and binning."""
+        if scene is None:
+            return {}
+        tiles = -(-width // config.tile_size) * -(-height // config.tile_size)
+        n_blend = transparent_triangle_count(scene)
+        return {"fragments.counts+range": 16 * width * height, "fragments.binning": 44 * tiles,
+                "fragments.setup": per_triangle_bytes(scene.triangle_count, config)
+                + structs.prim_dtype.itemsize * max(1024, n_blend + n_blend // 8)}
 
     def __init__(self, device, config, ortho: bool = False):
         """ortho: an orthographic camera (setup.cl / coverage.h ORTHO; the forward passes read it)."""

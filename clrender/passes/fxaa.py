@@ -16,6 +16,14 @@ class FxaaPass(RenderPass):
     inputs = ("ldr",)
     outputs = ("ldr",)
 
+    @classmethod
+    def runs(cls, config):
+        return config.color_aa == "fxaa"
+
+    @classmethod
+    def buffer_bytes(cls, width, height, config, scene=None):
+        return {"fxaa.ldr+luma": 16 * width * height}
+
     def __init__(self, device, config):
         super().__init__(device, config)
         self.vec = capabilities.pixel_vector_width(device.cl_device)

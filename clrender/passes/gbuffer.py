@@ -22,6 +22,10 @@ class GBufferPass(RenderPass):
     inputs = ("vis_depth", "vis_prim", "prims") + SCENE_INPUTS + ("srgb_encode", "prev_view_proj")
     outputs = ("gbuffer",)
 
+    @classmethod
+    def buffer_bytes(cls, width, height, config, scene=None):
+        return {"gbuffer": 4 * len(layout.PLANES) * width * height}
+
     def __init__(self, device, config, planes=layout.PLANES, ortho: bool = False):
         """planes: the G-buffer planes this pass writes (layout.PLANES names): all for the deferred
         pipeline, `THIN_PLANES` for the light pre-pass, `DEPTH_PLANES` for light-indexed. The

@@ -50,6 +50,14 @@ class HatchingPass(RenderPass):
     inputs = ("ldr", "gbuffer")
     outputs = ("ldr",)
 
+    @classmethod
+    def runs(cls, config):
+        return bool(config.hatching)
+
+    @classmethod
+    def buffer_bytes(cls, width, height, config, scene=None):
+        return {"hatching.out+tam": 12 * width * height + tam.DEVICE_BYTES}
+
     def __init__(self, device, config):
         super().__init__(device, config)
         self.vec = capabilities.pixel_vector_width(device.cl_device)

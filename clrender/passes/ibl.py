@@ -349,6 +349,9 @@ class IblPass(RenderPass):
     inputs = ("environment",)
     outputs = ENV_OUTPUTS
 
+    def active(self, res):
+        return res["environment"] is not None    # no environment: the constant ambient, no kernel
+
     def __init__(self, device, config):
         super().__init__(device, config)
         self.placeholder = tuple(zeros(self.queue, 8, dt).data for dt in

@@ -30,6 +30,16 @@ class LightBufferPass(ShadePass):
     name = "light_buffer"
     outputs = ("light_buffer", "light_count", "shadow", "shadow_planes", "light_env")
 
+    @classmethod
+    def runs(cls, config):
+        return config.pipeline == "light_prepass"
+
+    @classmethod
+    def buffer_bytes(cls, width, height, config, scene=None):
+        px = width * height
+        return {"light_buffer": light_buffer_planes(config) * PRECISIONS[config.light_buffer_precision][0](0).itemsize
+                * px, "light_buffer.light_count": 4 * px, "light_buffer.light_pairs": 8 * px + 16}
+
     def __init__(self, device, config, ortho: bool = False):
         super().__init__(device, config, ortho)
         self.inputs = tuple(i for i in self.inputs if i not in ("srgb_lut", "ao") + ENV_OUTPUTS)

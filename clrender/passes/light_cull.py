@@ -47,6 +47,15 @@ class LightCullPass(TileLightLists):
     name = "light_cull"
     inputs = ("lights", "n_lights", "gbuffer", "view_matrix", "tan_x", "tan_y", "shift_x", "shift_y")
 
+    @classmethod
+    def runs(cls, config):
+        return config.light_culling in ("tiled", "stencil")
+
+    @classmethod
+    def buffer_bytes(cls, width, height, config, scene=None):
+        tiles = -(-width // config.light_tile_size) * -(-height // config.light_tile_size)
+        return {"light_cull.tiles": 24 * tiles, "light_cull.tile_lights": 4 * 16 * tiles}
+
     def __init__(self, device, config, ortho: bool = False):
         """ortho: an orthographic camera (light_cull.cl ORTHO: tile frusta are boxes)."""
         super().__init__(device, config)

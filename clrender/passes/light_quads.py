@@ -16,6 +16,19 @@ class LightQuadsPass(TileLightLists):
     name = "light_quads"
     inputs = ("lights", "n_lights", "view_matrix", "tan_x", "tan_y", "shift_x", "shift_y", "near", "far", "camera")
 
+    @classmethod
+    def runs(cls, config):
+        return config.light_culling == "quads"
+
+    @classmethod
+    def buffer_bytes(cls, width, height, config, scene=None):
+        """Per tile: rectangle and list; per light (a scene): pixel and tile rectangles."""
+        tiles = -(-width // config.light_tile_size) * -(-height // config.light_tile_size)
+        out = {"light_quads.tiles": 8 * tiles, "light_quads.tile_lights": 4 * 16 * tiles}
+        if scene is not None:
+            out["light_quads.rects"] = 32 * len(scene.lights)
+        return out
+
     def __init__(self, device, config, ortho: bool = False):
         """ortho: an orthographic camera (light_quads.cl ORTHO: a sphere's quad is its box)."""
         super().__init__(device, config)

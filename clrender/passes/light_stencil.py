@@ -19,6 +19,14 @@ class LightStencilPass(RenderPass):
               "tile_lights", "light_list_capacity", "light_tiles_x")
     outputs = ("light_stencil", "light_stencil_words")
 
+    @classmethod
+    def runs(cls, config):
+        return config.light_culling == "stencil"
+
+    @classmethod
+    def buffer_bytes(cls, width, height, config, scene=None):
+        return {"light_stencil.words": 4 * INITIAL_WORDS * width * height}
+
     def __init__(self, device, config, ortho: bool = False):
         """ortho: an orthographic camera (lighting.h ORTHO positions)."""
         super().__init__(device, config)

@@ -25,6 +25,15 @@ class MaterialPass(RenderPass):
     name = "material"
     outputs = ("color",)
 
+    @classmethod
+    def runs(cls, config):
+        return config.pipeline == "light_prepass"
+
+    @classmethod
+    def buffer_bytes(cls, width, height, config, scene=None):
+        px, s = width * height, config.msaa
+        return {"material.color+spread+deltas": 12 * px + (12 * px if s > 1 else 4) + max(12 * (s - 2) * px, 4)}
+
     def __init__(self, device, config, samples: int = 1, ortho: bool = False):
         """samples: how many sub-samples run() combines: plane s of res["msaa_vis_prims"] over
         res["msaa_prims"] (one sample: "vis_prim", "prims").

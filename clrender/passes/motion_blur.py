@@ -29,6 +29,17 @@ class MotionBlurPass(RenderPass):
     inputs = ("color", "gbuffer")
     outputs = ("color",)
 
+    @classmethod
+    def runs(cls, config):
+        return bool(config.motion_blur)
+
+    @classmethod
+    def buffer_bytes(cls, width, height, config, scene=None):
+        """The partial maxima counted for one pixel per work-item (VEC = 1): an upper bound."""
+        tiles_y = -(-height // MAX_RADIUS)
+        tiles = -(-width // MAX_RADIUS) * tiles_y
+        return {"motion_blur.inv_len+color+tiles": 16 * width * height + 16 * width * tiles_y + 8 * tiles}
+
     def __init__(self, device, config):
         super().__init__(device, config)
         self.vec = capabilities.pixel_vector_width(device.cl_device)

@@ -13,6 +13,9 @@ class ParticlesPass(RenderPass):
     inputs = ("lights", "particle_systems", "time")
     outputs = ("lights",)
 
+    def active(self, res):
+        return bool(res["particle_systems"])     # no particles: no kernel
+
     def __init__(self, device, config):
         super().__init__(device, config)
         self.kernel = device.kernel("particles.cl", "update_particles")

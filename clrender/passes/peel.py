@@ -18,6 +18,14 @@ class PeelPass(RenderPass):
               "vis_depth") + FORWARD_INPUTS
     outputs = ("layers",)
 
+    @classmethod
+    def runs(cls, config):
+        return config.transparency == "depth_peeling"
+
+    @classmethod
+    def buffer_bytes(cls, width, height, config, scene=None):
+        return {"peel.layer+layers": 36 * width * height}
+
     def __init__(self, device, config, fragments):
         super().__init__(device, config)
         self.walk = fragments

@@ -25,7 +25,7 @@ import numpy as np
 import pyopencl as cl
 import pyopencl.array as cla
 
-from clrender.loaders.common import NO_TANGENT
+from clrender.scene.tangents import NO_TANGENT
 from clrender.passes.base import RenderPass, launch_1d
 
 POSE_WG = 64

@@ -13,6 +13,10 @@ class RasterPass(RenderPass):
               "texels", "tex_infos", "tex_levels", "colors", "n_vertices", "has_colors")
     outputs = ("vis_depth", "vis_prim")
 
+    @classmethod
+    def buffer_bytes(cls, width, height, config, scene=None):
+        return {"raster.vis_depth+vis_prim": 8 * width * height}
+
     def __init__(self, device, config, ortho: bool = False, depth_only: bool = False, tile: int | None = None,
                  samples: int = 1):
         """ortho: orthographic prims (setup.cl ORTHO). depth_only (shadow maps): no visibility

@@ -41,6 +41,16 @@ class ResolvePass(RenderPass):
     inputs = ("color", "gbuffer", "width", "height")
     outputs = ("color", "gbuffer", "width", "height")
 
+    @classmethod
+    def runs(cls, config):
+        return config.supersample > 1      # over-sampling: the passes before render k·W × k·H
+
+    @classmethod
+    def buffer_bytes(cls, width, height, config, scene=None):
+        """At the output size: the filtered rows (k·H of them), colour and G-buffer."""
+        return {"resolve.rows+color+gbuffer": 12 * width * config.supersample * height
+                + (12 + 4 * len(layout.PLANES)) * width * height}
+
     def __init__(self, device, config):
         super().__init__(device, config)
         self.k = config.supersample

@@ -11,10 +11,11 @@ D3D pattern (docs/raster_contract.md §10): one setup, binning and raster for al
 """
 from __future__ import annotations
 
+from clrender.abi import structs
 from clrender.passes.base import RenderPass, Resources
-from clrender.passes.binning import BinningPass
+from clrender.passes.binning import BinningPass, initial_list_capacity
 from clrender.passes.raster import RasterPass
-from clrender.passes.setup import SetupPass
+from clrender.passes.setup import SetupPass, per_triangle_bytes
 
 # Sample offsets from the pixel centre in 1/16 pixel, y down: Direct3D's standard multisample
 # patterns (D3D11_STANDARD_MULTISAMPLE_PATTERN); ×16 gives the raster's 1/256 units. The kernels'
@@ -35,6 +36,14 @@ def sample_offsets(n: int) -> tuple:
 class RasterAgainPass(RasterPass):
     name = "raster_again"
 
+    @classmethod
+    def runs(cls, config):
+        return config.pipeline != "deferred" and not config.reuse_visibility and config.msaa == 1
+
+    @classmethod
+    def buffer_bytes(cls, width, height, config, scene=None):
+        return {}                   # the first raster's buffers
+
     def __init__(self, device, config, first: RasterPass, ortho: bool = False):
         super().__init__(device, config, ortho=ortho)
         self.first = first
@@ -53,6 +62,20 @@ class SampleGeometryPass(RenderPass):
     inputs = SetupPass.inputs + ("uvs", "texels", "tex_infos", "tex_levels", "colors", "n_vertices",
                                  "has_colors")
     outputs = ("msaa_vis_prims", "msaa_prims")
+
+    @classmethod
+    def runs(cls, config):
+        return config.pipeline != "deferred" and not config.reuse_visibility and config.msaa > 1
+
+    @classmethod
+    def buffer_bytes(cls, width, height, config, scene=None):
+        """One setup and binning; a visibility buffer per sub-sample and one depth scratch."""
+        px = width * height
+        tiles = -(-width // config.tile_size) * -(-height // config.tile_size)
+        t = scene.triangle_count if scene is not None else 0
+        prims = structs.prim_dtype.itemsize * max(1024, t + t // 8)
+        return {"msaa_geometry": 4 * px * (config.msaa + 1) + 12 * tiles + 4 * initial_list_capacity(tiles, t)
+                + prims + per_triangle_bytes(t, config)}
 
     def __init__(self, device, config, samples: int, select: str, ortho: bool = False):
         super().__init__(device, config)

@@ -17,10 +17,34 @@ from clrender.passes.chunk_cull import CHUNK, ChunkCullPass, chunk_defines, n_ch
 SELECT = {"all": 0, "opaque": 1, "blend": 2, "dither": 3}
 
 
+def per_triangle_bytes(t: int, config) -> int:
+    """The per-triangle buffers of prepare_scene: counts, offsets, statuses and staged prims; with
+    the chunk cull they are per chunk slot, plus the cull's chunk lists (the chunk boxes, shared by
+    every view, are counted once: buffer_bytes' "chunk_cull.bounds")."""
+    prim = structs.prim_dtype.itemsize
+    if not getattr(config, "chunk_cull", False):
+        return (9 + prim) * t
+    c = n_chunks(t)
+    return (8 + prim) * c * CHUNK + t + 8 * c + (5 * c + 4)
+
+
 class SetupPass(RenderPass):
     name = "setup"
     inputs = ("positions", "triangles", "tri_material", "materials", "view_proj", "n_tris", "near")
     outputs = ("prims", "prim_total", "prim_capacity", "tri_status")
+
+    @classmethod
+    def buffer_bytes(cls, width, height, config, scene=None):
+        """Room for 1024 prims before a scene; for one, the per-triangle buffers and n + n/8 prims
+        (clipping can add some; grown on demand), and the chunk cull's boxes (shared by every view)."""
+        prim = structs.prim_dtype.itemsize
+        if scene is None:
+            return {"setup.prims": prim * 1024}
+        t = scene.triangle_count
+        out = {"setup.per_triangle": per_triangle_bytes(t, config), "setup.prims": prim * max(1024, t + t // 8)}
+        if getattr(config, "chunk_cull", False):
+            out["chunk_cull.bounds"] = 32 * n_chunks(t)
+        return out
 
     def __init__(self, device, config, ortho: bool = False, select: str = "all", samples: int = 1,
                  status: bool = True):

@@ -63,6 +63,16 @@ class ShadePass(RenderPass):
     name = "shade"
     outputs = ("color", "light_count", "shadow", "shadow_planes", "light_env")
 
+    @classmethod
+    def runs(cls, config):
+        return config.pipeline == "deferred"
+
+    @classmethod
+    def buffer_bytes(cls, width, height, config, scene=None):
+        px = width * height
+        return {"shade.color": 12 * px, "shade.light_count": 4 * px,
+                "shade.light_pairs": 8 * px + 16}     # evaluated + useful per pixel, their 64-bit sums
+
     def __init__(self, device, config, ortho: bool = False):
         """ortho: an orthographic camera (lighting.h ORTHO: positions and view vectors)."""
         super().__init__(device, config)

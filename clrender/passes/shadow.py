@@ -25,9 +25,10 @@ import numpy as np
 import pyopencl as cl
 import pyopencl.array as cla
 
-from clrender.device import capabilities
+from clrender.device import capabilities, limits
 from clrender.passes import shadow_views
 from clrender.abi import structs
+from clrender.errors import DeviceMemoryError
 from clrender.device.timestamps import elapsed_ms, stamp
 from clrender.passes.base import Overflow, RenderPass, Resources, empty, zeros
 from clrender.passes.binning import BinningPass
@@ -72,6 +73,15 @@ class ShadowPass(RenderPass):
     inputs = ("positions", "triangles", "tri_material", "materials", "n_tris", "uvs", "texels",
               "tex_infos", "tex_levels", "colors", "n_vertices", "has_colors", "shadow_lights", "sun", "camera", "scene_bounds", "width", "height")
     outputs = ("shadow_atlas", "shadow_views", "shadow_layout", "shadow_view_count")
+
+    builds_on_publish = True
+
+    @classmethod
+    def runs(cls, config):
+        return bool(config.shadows)     # off: shade.cl built without lookups
+
+    def active(self, res):
+        return bool(res["shadow_view_count"])    # no shadowed light, no shadowed sun: no kernel
 
     def __init__(self, device, config):
         super().__init__(device, config)
@@ -125,8 +135,7 @@ class ShadowPass(RenderPass):
             m.set(np.ascontiguousarray(v.matrix, np.float32).reshape(-1), queue=self.queue)
 
     def _check_atlas_fits(self, layout, nbytes):
-        from clrender.render.memory import DeviceMemoryError, limits
-        total, max_alloc = limits(self.device.cl_device)
+        total, max_alloc = limits.limits(self.device.cl_device)
         if nbytes > min(max_alloc, total):
             raise DeviceMemoryError(
                 f"the shadow atlas ({layout.atlas_width}x{layout.atlas_height} texels for {len(layout.views)} maps) "

@@ -27,6 +27,14 @@ class SsaoPass(RenderPass):
     name = "ssao"
     inputs = ("gbuffer", "camera_params", "far", "tan_x", "tan_y")
 
+    @classmethod
+    def runs(cls, config):
+        return bool(config.ssao)                 # off: shade uses ao = 1
+
+    @classmethod
+    def buffer_bytes(cls, width, height, config, scene=None):
+        return {"ssao.ao": 4 * width * height}
+
     def __init__(self, device, config, ortho: bool = False):
         """ortho: an orthographic camera (ssao.cl ORTHO: parallel view rays)."""
         super().__init__(device, config)

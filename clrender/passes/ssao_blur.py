@@ -16,6 +16,14 @@ class SsaoBlurPass(RenderPass):
     inputs = ("ao_raw", "gbuffer")
     outputs = ("ao",)
 
+    @classmethod
+    def runs(cls, config):
+        return bool(config.ssao and config.ssao_blur)
+
+    @classmethod
+    def buffer_bytes(cls, width, height, config, scene=None):
+        return {"ssao_blur.along_x+ao": 8 * width * height}
+
     def __init__(self, device, config):
         super().__init__(device, config)
         self.vec = capabilities.pixel_vector_width(device.cl_device)

@@ -16,6 +16,11 @@ class TonemapPass(RenderPass):
     name = "tonemap"
     inputs = ("color", "srgb_encode")
 
+    @classmethod
+    def buffer_bytes(cls, width, height, config, scene=None):
+        """The packed image, or (LDR effects after it) three float planes."""
+        return {"tonemap.image": (12 if config.ldr_effects else 4) * width * height}
+
     def __init__(self, device, config, ldr: bool = False):
         super().__init__(device, config)
         self.ldr = ldr

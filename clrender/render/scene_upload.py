@@ -20,6 +20,7 @@ import pyopencl.array as cla
 from clrender.scene import model as scene_module
 from clrender.abi import structs
 from clrender.passes.base import Resources
+from clrender.passes.fragments import transparent_triangle_count  # noqa: F401  (kept here: its old home)
 from clrender.scene.model import TEXTURE_SLOTS, Scene, SceneError, Texture
 from clrender.render.texture_pool import upload_pool
 
@@ -125,12 +126,6 @@ def vertex_tangents(scene: Scene):
         return None
     from clrender.scene.tangents import generate_tangents
     return generate_tangents(scene.positions, scene.normals, scene.uv_set(sets[0]), scene.triangles)
-
-
-def transparent_triangle_count(scene: Scene) -> int:
-    """Triangles with a BLEND material (they skip the G-buffer: docs/transparency.md)."""
-    blend = np.array([m.alpha_mode == "BLEND" for m in scene.materials] or [False])
-    return int(np.count_nonzero(blend[scene.triangle_material])) if scene.triangle_count else 0
 
 
 # The arrays an upload reads. An entry keeps them (strong references, so that an identity compared

@@ -1,6 +1,6 @@
 """Keyframe animation of TOML scenes: camera keys, a camera orbit, light keys.
 
-`clrender.loaders.toml_scene` parses (format in its docstring)::
+`clrender.loaders.toml_tables` parses (format: docs/scene-format.md)::
 
     [camera]                       # up, near, far, projection, fov_y_deg, xmag, ymag as usual
     [[camera.keys]]                # any number >= 1, strictly increasing times
@@ -161,7 +161,7 @@ class LightKey:
 class LightTrack:
     index: int                    # in scene.lights
     keys: tuple
-    auto_radius_diagonal: Optional[float] = None   # set: the radius follows the colour (loaders.lights)
+    auto_radius_diagonal: Optional[float] = None   # set: the radius follows the colour (scene.lights)
 
     @property
     def duration(self) -> float:

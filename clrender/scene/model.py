@@ -12,6 +12,9 @@ node with a mesh is one object (two nodes sharing a mesh are two), made of that 
 primitives, which are the scene's meshes (`mesh_names`, pieces); an OBJ o/g group (a file
 without groups: the file), a PLY/STL file and a TOML [[mesh]] entry are one each. `mesh_object`
 maps each mesh to its object, so a triangle's object is mesh_object[triangle_mesh[t]].
+
+Beside it: clrender.scene.geometry (the coordinate checks, vertex normals) and clrender.scene.motion
+(`set_transform` and `pose`, a base class of Scene).
 """
 from __future__ import annotations
 
@@ -23,6 +26,8 @@ import numpy as np
 from clrender.abi import structs
 from clrender.scene.camera import Camera
 from clrender.errors import SceneError
+from clrender.scene.geometry import check_positions, vertex_normals
+from clrender.scene.motion import SceneMotion
 from clrender.scene.material import (
     ALPHA_MODES, LUMA, TEXTURE_SLOTS, Material, UVTransform, metallic_roughness_to_blinn_phong)
 
@@ -50,44 +55,6 @@ class ParticleSystem:
 
 
 SHADOW_MAP_SIZES = (16, 8192)      # inclusive range of a shadow map's side in texels
-
-# Vertex coordinates beyond this are refused: float32 ends at 3.4e38, so a coordinate of 1e30 has
-# only 8 orders of magnitude left before the camera's matrices (a far plane of 1e5, a pixel scale
-# of 1e3) overflow it to inf; no scene spans 1e30 units, and such values come from garbage bytes.
-MAX_COORDINATE = 1e30
-_CHECK_ROWS = 1 << 20               # vertices checked per step: a bounded temporary for huge meshes
-
-
-def bad_vertex(positions) -> int:
-    """The first row of (V, 3) `positions` with a coordinate that is NaN, infinite or beyond
-    ±MAX_COORDINATE; -1 when there is none."""
-    p = np.asarray(positions).reshape(-1, 3)
-    if not p.size or (-MAX_COORDINATE <= p.min() and p.max() <= MAX_COORDINATE):   # min/max carry NaN
-        return -1                   # the usual case: two reductions, no temporary array
-    for start in range(0, len(p), _CHECK_ROWS):
-        with np.errstate(invalid="ignore"):
-            ok = (np.abs(p[start:start + _CHECK_ROWS]) <= MAX_COORDINATE).all(axis=1)   # NaN compares False
-        if not ok.all():
-            return start + int(np.argmin(ok))
-    return -1
-
-
-def coordinates_text(row) -> str:
-    """A vertex for a message: (x, y, z), float32's 7 significant digits each."""
-    return "(" + ", ".join(f"{float(v):.7g}" for v in np.asarray(row).reshape(-1)) + ")"
-
-
-BAD_COORDINATES = f"vertex coordinates must be finite and within ±1e{round(np.log10(MAX_COORDINATE))}"
-
-
-def check_positions(positions, where: str, what: str = "positions") -> None:
-    """SceneError `<where>: <what>[i] is (x, y, z): vertex coordinates must be finite and within
-    ±1e+30` for the first bad vertex (bad_vertex), else nothing."""
-    i = bad_vertex(positions)
-    if i >= 0:
-        row = np.asarray(positions).reshape(-1, 3)[i]
-        raise SceneError(f"{where}: {what}[{i}] is {coordinates_text(row)}: {BAD_COORDINATES}")
-
 
 def check_shadow_map_size(size) -> int:
     if not (isinstance(size, (int, np.integer)) and not isinstance(size, bool)
@@ -144,7 +111,7 @@ class Texture:
 class SceneObject:
     """One drawn instance: `name` (the glTF node's, the OBJ group's, the TOML entry's), the name
     of the `mesh` it draws, its `path` from the root ("parent/child" node names for glTF; past 63
-    levels the middle is shortened to "...<k nodes>...", see loaders/gltf.py PATH_HEAD) and its
+    levels the middle is shortened to "...<k nodes>...", see loaders/gltf/assemble.py PATH_HEAD) and its
     `extras`: the glTF node's (any JSON value: semantic labels travel here) or the TOML entry's
     `extras` table; None elsewhere."""
     name: str
@@ -155,7 +122,7 @@ class SceneObject:
 
 
 @dataclass
-class Scene:
+class Scene(SceneMotion):
     positions: np.ndarray                       # (V, 3) float32, world space
     normals: np.ndarray                         # (V, 3) float32, unit
     uvs: np.ndarray                             # (V, 2) float32, glTF convention (v down the image)
@@ -354,114 +321,6 @@ class Scene:
         self.lights = np.concatenate([self.lights, rec])
         return len(self.lights) - 1
 
-    # -- object motion ------------------------------------------------------------------------
-    def set_transform(self, mesh, matrix, previous=None) -> None:
-        """Place mesh `mesh` (a name in `mesh_names` or an index) with the 4×4 affine world transform
-        `matrix` (column vectors: p' = matrix @ (x, y, z, 1), translation in the last column),
-        applied to the mesh's vertices as they were before its first set_transform (its rest
-        pose); normals follow by the inverse transpose, and a mirroring matrix (negative
-        determinant) flips the winding. `previous` is the mesh's transform at the previous frame
-        (default: `matrix`, no motion): the G-buffer velocity of those vertices then reprojects
-        their previous positions with the previous camera (`Frame.velocity`, motion blur). A
-        previous transform holds until the mesh's next set_transform. Vertices the mesh shares
-        with other meshes are duplicated first, so triangle ids do not change."""
-        m = self._mesh_index(mesh)
-        if self.deformation is not None and m in self.deformation.meshes:
-            raise SceneError(f"{self.source}: mesh {self.mesh_names[m]!r} is deformed by a skin or morph targets; "
-                             f"pose it with scene.pose(t) (its joints and weights), not set_transform")
-        cur = _affine_matrix(matrix, "matrix")
-        prev = cur if previous is None else _affine_matrix(previous, "previous")
-        vertices, rest_p, rest_n, rest_tris = self._rest_pose(m)
-        for label, mat in (("matrix", cur), ("previous", prev)):   # finite but huge: beyond float32's range
-            placed = rest_p @ mat[:3, :3].T + mat[:3, 3]
-            i = bad_vertex(placed)
-            if i >= 0:
-                raise SceneError(f"{self.source}: set_transform of mesh {self.mesh_names[m]!r}: {label} places "
-                                 f"vertex {int(vertices[i])} at {coordinates_text(placed[i])}: {BAD_COORDINATES}")
-        a = cur[:3, :3]
-        positions, normals = self.positions.copy(), self.normals.copy()
-        positions[vertices] = rest_p @ a.T + cur[:3, 3]
-        n = rest_n @ np.linalg.inv(a)               # (A^-T n) for row vectors
-        length = np.linalg.norm(n, axis=1, keepdims=True)
-        normals[vertices] = np.where(length > 0, n / np.where(length > 0, length, 1.0), rest_n)
-        if self.tangents is not None:          # tangents are surface directions: A t; mirroring flips w
-            rest_t = self._rest_tangents.setdefault(m, self.tangents[vertices].astype(np.float64))
-            t = rest_t[:, :3] @ a.T
-            length = np.linalg.norm(t, axis=1, keepdims=True)
-            tangents = self.tangents.copy()
-            tangents[vertices, :3] = np.where(length > 0, t / np.where(length > 0, length, 1.0), 0.0)
-            tangents[vertices, 3] = rest_t[:, 3] * np.sign(np.linalg.det(a))
-            self.tangents = tangents
-        triangles = self.triangles.copy()
-        triangles[self.triangle_mesh == m] = rest_tris[:, [0, 2, 1]] if np.linalg.det(a) < 0 else rest_tris
-        before = self.previous_positions if self.previous_positions is not None else self.positions
-        previous_positions = before.copy()
-        previous_positions[vertices] = rest_p @ prev[:3, :3].T + prev[:3, 3]
-        self.positions, self.normals, self.triangles = positions, normals, triangles
-        # No vertex moved: no buffer of previous positions at all (frames exactly as without motion).
-        self.previous_positions = None if np.array_equal(previous_positions, positions) else previous_positions
-
-    def pose(self, t: float, dt: Optional[float] = None) -> Optional[Camera]:
-        """Pose the scene in place at time `t` (seconds) from its `animation` (clrender.scene.animation):
-        animated meshes by set_transform (motion over `dt` for the velocity AOV), the camera and
-        the lights. Returns the camera at t - dt to pass as `previous_camera` (None when dt is
-        None). A static scene (animation None) is left as it is."""
-        if self.animation is None:
-            return None if dt is None else self.camera
-        return self.animation.pose(self, t, dt)
-
-    def _mesh_index(self, mesh) -> int:
-        if isinstance(mesh, str):
-            hits = [i for i, name in enumerate(self.mesh_names) if name == mesh]
-            if not hits:
-                shown = ", ".join(map(repr, self.mesh_names[:8])) + (", ..." if len(self.mesh_names) > 8 else "")
-                raise SceneError(f"{self.source}: no mesh named {mesh!r} (meshes: {shown})")
-            if len(hits) > 1:
-                raise SceneError(f"{self.source}: {len(hits)} meshes are named {mesh!r}; pass its index instead")
-            return hits[0]
-        if isinstance(mesh, (int, np.integer)) and not isinstance(mesh, bool):
-            if not 0 <= mesh < len(self.mesh_names):
-                raise SceneError(f"{self.source}: mesh index {mesh} out of range (there are {len(self.mesh_names)})")
-            return int(mesh)
-        raise SceneError(f"{self.source}: a mesh is a name or an index into mesh_names, got {mesh!r}")
-
-    def _rest_pose(self, m: int) -> tuple:
-        """(vertex indices, rest positions, rest normals (float64), rest triangles) of mesh m; on
-        first use, vertices shared with other meshes are duplicated for this mesh's triangles."""
-        rest = self._rest_poses.get(m)
-        nv = len(self.positions)
-        if rest is not None and rest[0].size and rest[0].max() < nv and np.shape(self.triangles) == rest[4]:
-            return rest[:4]
-        mine = self.triangle_mesh == m
-        if not mine.any():
-            raise SceneError(f"{self.source}: mesh {self.mesh_names[m]!r} has no triangles to transform")
-        used = np.unique(self.triangles[mine])
-        shared = np.intersect1d(used, np.unique(self.triangles[~mine]))
-        if shared.size:
-            remap = np.arange(nv, dtype=np.int64)
-            remap[shared] = np.arange(nv, nv + shared.size)
-            self.positions = np.concatenate([self.positions, self.positions[shared]])
-            self.normals = np.concatenate([self.normals, self.normals[shared]])
-            self.uvs = np.concatenate([self.uvs, self.uvs[shared]])
-            for name in ("colors", "tangents"):
-                a = getattr(self, name)
-                if a is not None:
-                    setattr(self, name, np.concatenate([a, a[shared]]))
-            if self.extra_uvs is not None:
-                self.extra_uvs = np.concatenate([self.extra_uvs, self.extra_uvs[:, shared]], axis=1)
-            if self.previous_positions is not None:
-                self.previous_positions = np.concatenate([self.previous_positions, self.previous_positions[shared]])
-            triangles = self.triangles.copy()
-            triangles[mine] = remap[triangles[mine]]
-            self.triangles = triangles
-            used = np.unique(self.triangles[mine])
-        rest = (used, self.positions[used].astype(np.float64), self.normals[used].astype(np.float64),
-                self.triangles[mine].copy(), self.triangles.shape)
-        self._rest_poses[m] = rest
-        if self.tangents is not None:
-            self._rest_tangents[m] = self.tangents[used].astype(np.float64)
-        return rest[:4]
-
     # -- queries ------------------------------------------------------------------------------
     @property
     def uv_set_count(self) -> int:
@@ -574,37 +433,3 @@ class Scene:
                 **({"projection": "orthographic", "xmag": self.camera.xmag, "ymag": self.camera.ymag}
                    if self.camera.is_orthographic else {"fov_y_deg": self.camera.fov_y_deg})},
         }
-
-
-def _affine_matrix(matrix, what: str) -> np.ndarray:
-    """A finite 4×4 affine transform (last row 0, 0, 0, 1) with an invertible 3×3 part, as float64."""
-    try:
-        a = np.asarray(matrix, dtype=np.float64)
-    except (TypeError, ValueError):
-        raise SceneError(f"set_transform: {what} must be a 4x4 numeric matrix, got {matrix!r}") from None
-    if a.shape != (4, 4) or not np.isfinite(a).all():
-        raise SceneError(f"set_transform: {what} must be a finite 4x4 matrix, got shape {a.shape}")
-    if not np.array_equal(a[3], (0.0, 0.0, 0.0, 1.0)):
-        raise SceneError(f"set_transform: {what} must be affine (last row 0, 0, 0, 1), got {a[3].tolist()}")
-    det = np.linalg.det(a[:3, :3])
-    if not abs(det) > 1e-12 * max(np.abs(a[:3, :3]).max(), 1e-300) ** 3:
-        raise SceneError(f"set_transform: {what}'s 3x3 part is singular (determinant {det:g})")
-    return a
-
-
-def vertex_normals(positions: np.ndarray, triangles: np.ndarray) -> np.ndarray:
-    """Area-weighted vertex normals; vertices touching no valid face get (0, 0, 1)."""
-    positions = np.asarray(positions, np.float64)
-    normals = np.zeros_like(positions)
-    if len(triangles):
-        tri = np.asarray(triangles, np.int64)
-        p0, p1, p2 = positions[tri[:, 0]], positions[tri[:, 1]], positions[tri[:, 2]]
-        fn = np.cross(p1 - p0, p2 - p0)
-        fn[~np.isfinite(fn).all(1)] = 0.0
-        for k in range(3):
-            np.add.at(normals, tri[:, k], fn)
-    length = np.linalg.norm(normals, axis=1, keepdims=True)
-    ok = length[:, 0] > 0
-    normals[ok] /= length[ok]
-    normals[~ok] = (0.0, 0.0, 1.0)
-    return normals.astype(np.float32)

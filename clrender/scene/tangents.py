@@ -63,8 +63,11 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["generate_tangents", "fallback_tangents"]
+__all__ = ["generate_tangents", "fallback_tangents", "NO_TANGENT"]
 
+# The tangent of a vertex that has none (no TANGENT, no normal map): zero xyz, which the G-buffer
+# resolve treats as "no tangent frame" (the normal map is not applied there); w = +1.
+NO_TANGENT = (0.0, 0.0, 0.0, 1.0)
 DEGENERATE_UV = 1e-12      # |det| below this × (uv extent)² counts as zero uv area
 
 

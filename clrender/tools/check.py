@@ -16,6 +16,7 @@ from typing import Optional, Sequence
 
 import numpy as np
 
+from clrender.abi import aovs as aov_table
 from clrender.scene.camera import Camera
 from clrender.scene.model import Scene
 
@@ -282,8 +283,14 @@ def _transparent_case(rng) -> Scene:
     return scene
 
 
-AOVS = ("triangle_id", "object_id", "material_id", "depth", "normal", "albedo", "specular_intensity", "specular_power", "base_color", "metallic",
-        "roughness", "shading_model", "emissive", "occlusion", "velocity", "light_count", "ao", "shadow", "fragment_count", "transmittance", "edges", "color", "image")
+# Every AOV of the table (clrender.abi.aovs) is compared, with its tolerance above, except those
+# the host computes from compared ones.
+NOT_COMPARED = {"linear_depth": "depth's distance along the ray (host, from depth)",
+                "position": "world position (host, from depth and the camera)"}
+AOVS = tuple(name for name in aov_table.NAMES if name not in NOT_COMPARED)
+if set(AOVS) != set(TOLERANCES):
+    raise AssertionError(f"clrender.tools.check.TOLERANCES and the AOV table disagree: "
+                         f"{sorted(set(AOVS) ^ set(TOLERANCES))}")
 
 
 def run_check(devices="all", scenes: Sequence[str | Path] = (), width: int = 96,

@@ -334,7 +334,7 @@ def triangles_scene(tri_vertices, single_sided=None):
     """A Scene with one material per sidedness from (T, 3, 3) world vertices.
     single_sided: (T,) bool (default all double-sided). Triangle ids follow the input order."""
     from clrender import Material, Scene
-    from clrender.scene.model import vertex_normals
+    from clrender.scene.geometry import vertex_normals
     v = np.asarray(tri_vertices, np.float32).reshape(-1, 3, 3)
     T = len(v)
     positions = v.reshape(-1, 3)

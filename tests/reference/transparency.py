@@ -51,9 +51,9 @@ from typing import Optional
 
 import numpy as np
 
-from clrender import shading
-from clrender.raster import (
-    F32, SUB, HALF, Prims, ReferenceScopeError, clip_near, prim_fragments, setup, transform, view_projection_f32)
+from . import shading
+from .raster import (F32, SUB, HALF, Prims, ReferenceScopeError, clip_near, prim_fragments, setup, transform,
+                     view_projection_f32)
 
 TRANSMITTANCE_EPSILON = 1e-4
 

@@ -6,7 +6,7 @@ bit: CLRENDER_GLTF_TRIMESH=1 still loads through trimesh, the reference the test
 each mesh node's world matrix is applied to positions and (inverse-transpose, renormalized) normals.
 Also:
 
-* the file is read and validated first by `gltf_document` (JSON, GLB chunks, buffers, buffer
+* the file is read and validated first by `document` and `validate` (JSON, GLB chunks, buffers, buffer
   views, accessor ranges, indices into every array), so bad input is a `SceneError` naming the
   file, never a traceback;
 * triangle order is the glTF node traversal order (scene roots in order, depth-first, children in
@@ -37,7 +37,7 @@ Also:
   per frame (kernels/pose.cl). A skinned mesh ignores its node's transform and keeps its winding;
 * what is not rendered -- point/line/fan primitives,
   COLOR_n for n >= 1, non-default scenes, nearest magnification, any extension outside
-  `gltf_document.SUPPORTED_EXTENSIONS` (in extensionsUsed or on any object) -- is collected while
+  `spec.SUPPORTED_EXTENSIONS` (in extensionsUsed or on any object) -- is collected while
   loading and warned ONCE per file and feature at the end; the rest loads. An extension outside
   that set in extensionsRequired is a SceneError naming it;
 * the camera is the first camera in traversal order, perspective (`yfov`, `znear`, `zfar`) or
@@ -66,18 +66,18 @@ from typing import Optional
 
 import numpy as np
 
-from clrender.scene import animation as gltf_animation
+from clrender.loaders.gltf import animation as gltf_animation
 from clrender.abi import structs
 from clrender.scene.camera import Camera
 from clrender.scene.model import Material, Scene, SceneError, SceneObject
 from clrender.scene.deform import Deformation
-from clrender.scene.model import BAD_COORDINATES, bad_vertex, coordinates_text, vertex_normals
+from clrender.scene.geometry import BAD_COORDINATES, bad_vertex, coordinates_text, vertex_normals
 from clrender.scene.tangents import generate_tangents
 from clrender.loaders import budget
 from clrender.loaders.common import Piece, assemble, check_faces, world_piece
-from clrender.loaders.gltf.document import (
-    MODE_FAN, MODE_STRIP, MODE_TRIANGLES, SUPPORTED_EXTENSIONS, Document, attribute_sets, extensions_in_use,
-    load_document, node_light, punctual_lights)
+from clrender.loaders.gltf.document import Document, extensions_in_use, load_document
+from clrender.loaders.gltf.spec import MODE_FAN, MODE_STRIP, MODE_TRIANGLES, SUPPORTED_EXTENSIONS, attribute_sets
+from clrender.loaders.gltf.validate import node_light, punctual_lights
 from clrender.loaders.gltf.geometry import geometry_for
 from clrender.loaders.gltf.skin import deformer, read_skins
 from clrender.loaders.gltf.materials import load_materials

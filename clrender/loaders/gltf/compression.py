@@ -1,4 +1,4 @@
-"""Compressed and quantized glTF data (docs/compression.md), hooked into `gltf_document.Document`.
+"""Compressed and quantized glTF data (docs/compression.md), hooked into `clrender.loaders.gltf.document.Document`.
 
 * KHR_mesh_quantization: integer attributes; `Document.accessor` dequantizes normalized ones and
   returns non-normalized vertex attributes as float32 (validation accepts the extension's formats).
@@ -25,9 +25,10 @@ from typing import Optional
 
 import numpy as np
 
-DRACO, MESHOPT, QUANTIZATION = "KHR_draco_mesh_compression", "EXT_meshopt_compression", "KHR_mesh_quantization"
-WEBP, BASISU = "EXT_texture_webp", "KHR_texture_basisu"
-EXTENSIONS = frozenset({DRACO, MESHOPT, QUANTIZATION})      # added to gltf_document.SUPPORTED_EXTENSIONS
+from clrender.loaders import budget
+from clrender.loaders.gltf.spec import (  # noqa: F401  (QUANTIZATION, EXTENSIONS: this module's names too)
+    BASISU, COMPONENT_TYPES, DRACO, MESHOPT, QUANTIZATION, TYPE_SIZES, WEBP, accessor_bytes)
+from clrender.loaders.gltf.spec import COMPRESSION_EXTENSIONS as EXTENSIONS  # noqa: F401
 INSTALL = 'pip install "clrender[compression]"'
 # extension -> (module to import, the PyPI package that provides it)
 PACKAGES = {DRACO: ("DracoPy", "DracoPy"), MESHOPT: ("meshoptimizer", "meshoptimizer")}
@@ -206,8 +207,6 @@ def draco_accessor(doc, index: int) -> Optional[np.ndarray]:
     where = f"{what}: the {DRACO} data (bufferView {v})"
     # the decoded arrays are the accessors' sizes (checked against them after decoding): their
     # counts are charged to the load's memory budget before DracoPy allocates anything
-    from clrender.loaders import budget
-    from clrender.loaders.gltf.document import accessor_bytes
     filled = {prim["attributes"][n] for n in ext["attributes"]}
     filled |= {prim["indices"]} if "indices" in prim else set()
     budget.current().charge(sum(accessor_bytes(doc.json["accessors"][a]) for a in filled), doc.path,
@@ -238,8 +237,6 @@ def draco_accessor(doc, index: int) -> Optional[np.ndarray]:
 
 def _store(doc, where: str, label: str, a: int, data: np.ndarray) -> None:
     """Decoded `data` as glTF accessor `a` (its componentType, type, count and normalized flag)."""
-    from clrender.loaders.gltf.document import COMPONENT_TYPES, TYPE_SIZES
-
     acc = doc.json["accessors"][a]
     dtype, ncomp, count = np.dtype(COMPONENT_TYPES[acc["componentType"]]), TYPE_SIZES[acc["type"]], acc["count"]
     data = data.reshape(len(data), -1) if data.ndim != 2 else data
@@ -269,7 +266,6 @@ def meshopt_view(doc, index: int) -> Optional[memoryview]:
     off, length = ext.get("byteOffset", 0), ext["byteLength"]
     count, stride, mode, filt = ext["count"], ext["byteStride"], ext["mode"], ext.get("filter", "NONE")
     # count x byteStride decoded bytes (plus the decoder's own copy) from a few compressed ones
-    from clrender.loaders import budget
     budget.current().charge(2 * count * stride, doc.path,
                             f"bufferViews[{index}].extensions.{MESHOPT}.count ({count} x byteStride {stride})")
     src = bytes(memoryview(doc.buffers[ext["buffer"]])[off:off + length])

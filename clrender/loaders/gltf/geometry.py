@@ -32,7 +32,8 @@ import re
 import numpy as np
 
 from clrender.loaders.common import trimesh_load, trimesh_vertex_normals
-from clrender.loaders.gltf.document import MODE_STRIP, MODE_TRIANGLES, Document
+from clrender.loaders.gltf.document import Document
+from clrender.loaders.gltf.spec import MODE_STRIP, MODE_TRIANGLES
 
 ENV_TRIMESH = "CLRENDER_GLTF_TRIMESH"
 _EYE = np.eye(4)

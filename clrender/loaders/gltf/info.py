@@ -61,7 +61,7 @@ def _name(item: dict):
 
 
 def _sets(attrs: dict, kind: str) -> list[int]:
-    from clrender.loaders.gltf.document import attribute_sets
+    from clrender.loaders.gltf.spec import attribute_sets
     return attribute_sets(attrs, kind)
 
 

@@ -17,8 +17,9 @@ from urllib.parse import unquote
 from clrender.scene.model import TEXTURE_SLOTS, Material, SceneError, Texture, UVTransform
 from clrender.loaders import confine
 from clrender.loaders.common import decode_image, start_images
-from clrender.loaders.gltf.document import (
-    TEXTURE_INFOS, WRAP_MODES, Document, data_uri, material_textures, texcoord_of, texture_source)
+from clrender.loaders.gltf.document import Document, texture_source
+from clrender.loaders.gltf.spec import TEXTURE_INFOS, WRAP_MODES
+from clrender.loaders.gltf.validate import data_uri, material_textures, texcoord_of
 
 SRGB_SLOTS = {slot: srgb for slot, _, srgb in TEXTURE_INFOS}
 NEAREST = 9728

@@ -23,8 +23,9 @@ import numpy as np
 from clrender.scene.deform import Deformer, Skin, normalize_weights
 from clrender.errors import SceneError
 from clrender.loaders import budget
-from clrender.scene.model import BAD_COORDINATES, bad_vertex, coordinates_text
-from clrender.loaders.gltf.document import Document, attribute_sets
+from clrender.scene.geometry import BAD_COORDINATES, bad_vertex, coordinates_text
+from clrender.loaders.gltf.document import Document
+from clrender.loaders.gltf.spec import attribute_sets
 
 MORPH_ATTRIBUTES = ("POSITION", "NORMAL", "TANGENT")
 
