@@ -40,7 +40,7 @@ def main(argv=None) -> None:
     import imageio.v3 as iio
 
     import clrender
-    from clrender.cli.main import main as cli
+    from clrender.cli.app import main as cli
     from clrender.dataset.views import load_dataset
 
     scene_path = require_scene(SPONZA)

@@ -207,7 +207,7 @@ def test_cli_flags_and_edges_aov(device, tmp_path, capsys, monkeypatch):
     """--edge-aa/--edge-depth-threshold/--edge-normal-threshold/--fxaa reach the RenderConfig;
     --aov edges writes the uint8 mask (.npy) and a white-on-black preview, no .exr."""
     import imageio.v3 as iio
-    from clrender.cli import main as cli
+    from clrender.cli import app as cli
     from clrender.render import renderer as renderer_module
 
     monkeypatch.delenv(cli.ENV_DEBUG, raising=False)

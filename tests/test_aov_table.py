@@ -71,7 +71,7 @@ def test_the_check_fails_on_an_incomplete_row():
 
 
 def test_writers_and_cli_read_the_table():
-    from clrender.cli import main as cli
+    from clrender.cli import app as cli
     from clrender.outputs import aov_io
     from clrender.render.frame import Frame
     assert Frame.AOV_NAMES == aovs.NAMES

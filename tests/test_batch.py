@@ -16,7 +16,7 @@ import pytest
 
 from clrender import Renderer, load_scene
 from clrender.outputs import video  # write_video and its ffmpeg check
-from clrender.cli import main as cli, batch as cli_batch
+from clrender.cli import app as cli, batch as cli_batch
 from clrender.batch.jobs import render_frames
 
 REPO = Path(__file__).resolve().parents[1]

@@ -390,7 +390,7 @@ def test_cli_hundred_million_frames_start_at_once(tmp_path):
 def test_dataset_views_are_checked_before_planning(tmp_path, capsys):
     """`clrender dataset --views 100000000`: a dataset's camera files list every view before the first
     renders, so the count is checked against the budget first: one line, at once, nothing written."""
-    from clrender.cli import main as cli
+    from clrender.cli import app as cli
     scene = write_obj(tmp_path)
     out = tmp_path / "ds"
     start = time.perf_counter()

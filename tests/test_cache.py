@@ -10,7 +10,7 @@ import warnings
 import pytest
 
 from clrender.device import cache
-from clrender.cli import main as cli
+from clrender.cli import app as cli
 
 MB = 2**20
 

@@ -5,7 +5,7 @@ from pathlib import Path
 import numpy as np
 
 from clrender.tools import check
-from clrender.cli import main as cli
+from clrender.cli import app as cli
 from helpers import skip_or_fail
 
 REPO = Path(__file__).resolve().parents[1]

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from clrender.outputs import aov_io
-from clrender.cli import main as cli
+from clrender.cli import app as cli
 from helpers import record_render_configs
 
 REPO = Path(__file__).resolve().parent.parent

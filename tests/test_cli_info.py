@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from clrender.cli import main as cli
+from clrender.cli import app as cli
 from gltf_files import primitive, write_gltf
 from helpers import SHARED_SCENES, skip_or_fail
 

@@ -26,7 +26,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from clrender.cli import main as cli
+from clrender.cli import app as cli
 from clrender.scene.model import SceneError
 from helpers import in_ci
 

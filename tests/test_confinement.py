@@ -333,7 +333,7 @@ def _one_error_line(capsys) -> str:
 
 
 def test_cli_info_and_allow_outside(dirs, capsys, monkeypatch):
-    from clrender.cli import main as cli
+    from clrender.cli import app as cli
     monkeypatch.delenv("CLRENDER_LOG", raising=False)
     scene, outside = dirs
     path = _gltf(scene / "s.gltf", buffer_uri="../outside/secret.bin")
@@ -350,7 +350,7 @@ def test_cli_info_and_allow_outside(dirs, capsys, monkeypatch):
 
 def test_cli_render_and_batch_allow_outside(dirs, tmp_path, capsys, device, monkeypatch):
     """`render` (a still) and `render --frames` (the batch path: tasks carry the folders to workers)."""
-    from clrender.cli import main as cli
+    from clrender.cli import app as cli
     monkeypatch.delenv("CLRENDER_LOG", raising=False)
     scene, outside = dirs
     (scene / "m.obj").write_text(f"mtllib {outside / 'good.mtl'}\nusemtl red\n" + TRI_OBJ)
@@ -381,7 +381,7 @@ def test_render_frames_library_allow(dirs, tmp_path, device):
 
 
 def test_cli_dataset_allow_outside(dirs, tmp_path, capsys, device, monkeypatch):
-    from clrender.cli import main as cli
+    from clrender.cli import app as cli
     monkeypatch.delenv("CLRENDER_LOG", raising=False)
     scene, outside = dirs
     path = _gltf(scene / "s.gltf", buffer_uri="../outside/tri.bin")

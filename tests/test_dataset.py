@@ -15,7 +15,7 @@ import pytest
 
 from clrender import Renderer, load_scene
 from clrender.outputs import aov_io
-from clrender.cli import main as cli
+from clrender.cli import app as cli
 from clrender.batch.jobs import FrameTask, Outputs, scene_config
 from clrender.dataset.views import (
     export_documents, layout_cameras, load_dataset, parse_documents, quaternion_from_rotation,

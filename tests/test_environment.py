@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from clrender.cli import main as cli
+from clrender.cli import app as cli
 from clrender.scene.environment import (
     Environment, describe, directions_of_texels, load_environment, lookup, studio_environment)
 from clrender.scene.environment_files import decode_rgbe, encode_rgbe, read_exr, read_rgbe, write_rgbe

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 import clrender
-from clrender.cli import main as cli
+from clrender.cli import app as cli
 from clrender.device import probe as device_probe
 from clrender import progress
 from clrender.device.core import Device, LazyKernel, lazy_kernels

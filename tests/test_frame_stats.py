@@ -6,7 +6,7 @@ from pathlib import Path
 
 import pytest
 
-from clrender.cli import main as cli
+from clrender.cli import app as cli
 from clrender import load_scene
 from clrender.render.pipeline import HOST_PHASES, NOT_PASS_MS, pass_ms
 

@@ -350,7 +350,7 @@ def test_memory_estimate_covers_the_new_buffers(make_renderer, device, mode):
 
 
 def test_cli_and_toml_reach_render_config(tmp_path, device, monkeypatch):
-    from clrender.cli import main as cli
+    from clrender.cli import app as cli
     from helpers import record_render_configs
     seen = record_render_configs(monkeypatch)
     obj = tmp_path / "quad.obj"

@@ -191,7 +191,7 @@ def test_toml_extras_must_be_a_table(tmp_path):
 
 
 def test_aov_files_hold_the_ids_and_positions(shared_mesh, tmp_path):
-    from clrender.cli.main import main
+    from clrender.cli.app import main
     scene, expect_object, _ = shared_mesh
     out = tmp_path / "f.png"
     args = ["render", scene.source, "-o", str(out), "--width", str(W), "--height", str(H),
@@ -209,7 +209,7 @@ def test_aov_files_hold_the_ids_and_positions(shared_mesh, tmp_path):
 def test_position_is_an_exr_layer(shared_mesh, tmp_path):
     pytest.importorskip("OpenEXR")
     from clrender.outputs.aov_io import read_exr
-    from clrender.cli.main import main
+    from clrender.cli.app import main
     scene, _, _ = shared_mesh
     out = tmp_path / "f.png"
     assert main(["render", scene.source, "-o", str(out), "--width", str(W), "--height", str(H),
@@ -222,7 +222,7 @@ def test_position_is_an_exr_layer(shared_mesh, tmp_path):
 
 
 def test_info_lists_the_objects(shared_mesh, capsys):
-    from clrender.cli.main import main
+    from clrender.cli.app import main
     scene, _, _ = shared_mesh
     assert main(["info", scene.source]) == 0
     assert "objects    2 ('A', 'B'), 1 with extras" in capsys.readouterr().out

@@ -308,7 +308,7 @@ def test_depth_peeling_and_cap_kernels(device, capfd):
 
 def test_screen_door_kernels(device, capfd):
     """BLEND triangles through the opaque setup and raster with the 4x4 dither threshold."""
-    from test_transparency import build_scene
+    from transparency_cases import build_scene
     scene = build_scene([(pixel_rect(0, TW, 0, TH, 12.0), None, Material("wall", (0.7, 0.7, 0.7, 1.0))),
                          (pixel_rect(4, 20, 4, 12, 4.0), None, Material("glass", (0.9, 0.2, 0.2, 1.0), opacity=0.5))])
     scene.add_spot_light((0.5, 0.5, 0.0), (0.0, 0.0, -1.0), (5.0, 5.0, 5.0), 30.0, 50.0, 65.0, shadow=True,
@@ -328,7 +328,7 @@ def test_screen_door_kernels(device, capfd):
 
 def test_refraction_kernels(device, capfd):
     """The composite's displaced lookup behind a tilted refracting glass (shadows on)."""
-    from test_transparency import build_scene
+    from transparency_cases import build_scene
     light_m = Material("light", (0.9, 0.9, 0.9, 1.0), specular_intensity=0.0)
     dark_m = Material("dark", (0.05, 0.1, 0.3, 1.0), specular_intensity=0.0)
     parts = [(pixel_rect(x, x + 2, 0, TH, 12.0), None, light_m if (x // 2) % 2 else dark_m) for x in range(0, TW, 2)]

@@ -31,7 +31,7 @@ def _toml_value(value) -> str:
 
 def _parse(tmp_path, *flags):
     from clrender.cli.common import render_options
-    from clrender.cli.main import build_parser, _join_vector_options
+    from clrender.cli.app import build_parser, _join_vector_options
     scene = tmp_path / "t.gltf"
     write_gltf(scene)
     args = build_parser().parse_args(_join_vector_options(["render", str(scene), "-o", str(tmp_path / "o.png"),
@@ -71,7 +71,7 @@ def test_each_option_is_checked_as_the_table_says(option):
 
 
 def test_cli_flags_are_the_table(tmp_path):
-    from clrender.cli.main import build_parser
+    from clrender.cli.app import build_parser
     sub = next(a for a in build_parser()._actions if isinstance(a, argparse._SubParsersAction))
     for command in ("render", "dataset"):
         flags = {s for a in sub.choices[command]._actions for s in a.option_strings}

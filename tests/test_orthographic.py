@@ -304,7 +304,7 @@ def test_toml_orthographic_camera(tmp_path):
 
 
 def test_cli_ortho_flag(tmp_path, capsys):
-    from clrender.cli import main as cli
+    from clrender.cli import app as cli
     path = _toml(tmp_path, 'projection = "orthographic"\nxmag = 2\nymag = 1.5\n')
     assert cli.main(["info", str(path), "--json"]) == 0
     info = json.loads(capsys.readouterr().out)

@@ -11,7 +11,7 @@ import pytest
 import clrender
 from clrender.outputs import aov_io
 from clrender.outputs import video  # write_video and its ffmpeg check (moved out of aov_io)
-from clrender.cli import main as cli
+from clrender.cli import app as cli
 from clrender.abi.gbuffer import linear_to_srgb8
 
 ROOT = Path(__file__).resolve().parent.parent

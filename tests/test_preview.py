@@ -11,7 +11,7 @@ import pytest
 
 from clrender import Renderer, load_scene
 from clrender.outputs.aov_io import LABEL_HEIGHT, contact_sheet, preview
-from clrender.cli.main import main
+from clrender.cli.app import main
 
 WORM = Path(__file__).resolve().parents[1] / "scenes" / "worm.gltf"
 W, H = 80, 45

@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 from clrender import Camera, SceneError
-from clrender.cli import main as cli
+from clrender.cli import app as cli
 from clrender.loaders import load_scene
 from clrender.loaders.gltf import geometry as gltf_geometry
 from gltf_files import primitive, write_gltf

@@ -316,7 +316,7 @@ def test_bad_options(opts, message):
 
 
 def test_cli_and_toml_options(device, tmp_path, monkeypatch):
-    from clrender.cli import main as cli
+    from clrender.cli import app as cli
     from helpers import record_render_configs
     configs = record_render_configs(monkeypatch)
     toml = tmp_path / "s.toml"

@@ -4,5 +4,5 @@
 from clrender._lazy import exports
 
 __all__, __getattr__, __dir__ = exports(__name__, {
-    "main": ("main", "run",),
-}, fallback="main")
+    "app": ("main", "run",),
+}, fallback="app")

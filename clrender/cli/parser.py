@@ -1,6 +1,6 @@
 """The command line's grammar: `clrender render | devices | check | info` and their options'
 types (`dataset`'s: clrender/cli/dataset.py, sharing add_render_options and add_batch_options;
-clrender/cli/main.py's build_parser puts the subcommands together). The render flags come from
+clrender/cli/app.py's build_parser puts the subcommands together). The render flags come from
 the option table (clrender/config.py). This module only describes and checks the arguments."""
 from __future__ import annotations
 

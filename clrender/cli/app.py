@@ -36,7 +36,7 @@ from clrender.errors import DeviceError, SceneError
 from clrender.cli import dataset as cli_dataset, parser as cli_parser, setup as cli_setup
 from clrender.cli.parser import _join_vector_options
 
-# Names scripts and tests reach as clrender.cli.X / clrender.cli.main.X (all of this was one module).
+# Names scripts and tests reach as clrender.cli.X / clrender.cli.app.X (all of this was one module).
 from clrender.outputs.aov_io import INT_AOVS, preview  # noqa: F401
 from clrender.cli.parser import AOVS  # noqa: F401
 from clrender.cli.common import (  # noqa: F401
