@@ -245,60 +245,9 @@ def unknown_options(names) -> list[str]:
     return sorted(set(names) - set(OPTION))
 
 
-@dataclass(frozen=True)
-class RenderConfig:
-    """Render options (fields and defaults from OPTIONS). Unknown names are errors
-    (see `RenderConfig.from_options`)."""
-    # Fields written out for readers and type checkers; the option table is the definition:
-    # _check_fields_match_table fails at import when the two disagree.
-    pipeline: str = "deferred"
-    shading: str = "auto"
-    msaa: int = 1
-    light_buffer_specular: str = "rgb"
-    light_buffer_precision: str = "float32"
-    reuse_visibility: bool = False
-    tile_size: int = 8
-    light_tile_size: int = 32
-    shadow_tile_size: Optional[int] = None
-    light_culling: str = "tiled"
-    light_depth_mask: bool = False
-    tonemap: str = "reinhard"
-    exposure: float = 1.0
-    ssao: bool = False
-    ssao_radius: float = 1.0
-    ssao_strength: float = 1.0
-    ssao_blur: bool = True
-    shadows: bool = True
-    shadow_filter: str = "pcf3x3"
-    shadow_filter_radius: float = 2.0
-    shadow_bias: float = 1.0
-    shadow_slope_bias: float = 1.0
-    shadow_normal_offset: float = 1.0
-    sun_cascades: int = 3
-    sun_split_lambda: float = 0.75
-    shadow_atlas_max: int = 16384
-    shadow_map_reuse: bool = True
-    chunk_cull: bool = True
-    transparency: str = "abuffer"
-    peel_layers: int = 4
-    max_fragments_per_pixel: int = 0
-    refraction: bool = False
-    supersample: int = 1
-    supersample_filter: str = "box"
-    edge_aa: bool = False
-    edge_depth_threshold: float = 0.05
-    edge_normal_threshold_deg: float = 30.0
-    color_aa: str = "none"
-    bloom: bool = False
-    bloom_threshold: float = 1.0
-    bloom_strength: float = 0.1
-    bloom_radius: float = 16.0
-    motion_blur: bool = False
-    shutter: float = 0.5
-    motion_blur_samples: int = 8
-    hatching: bool = False
-    hatching_scale: float = 1.0
-    hatching_saturation: float = 0.3
+class _RenderConfigRules:
+    """RenderConfig's behaviour; its fields are made from OPTIONS below (one definition per option)."""
+    __slots__ = ()
 
     def __post_init__(self):
         for option in OPTIONS:                  # each value alone: type, choices, range
@@ -339,17 +288,18 @@ class RenderConfig:
         return cls(**options)
 
 
-def _check_fields_match_table() -> None:
-    fields = [(f.name, f.default) for f in dataclasses.fields(RenderConfig)]
-    table = [(o.name, o.default) for o in OPTIONS]
-    if fields != table:
-        raise AssertionError(f"RenderConfig's fields and config.OPTIONS disagree: "
-                             f"{sorted(set(fields) ^ set(table))}")
-    for option in OPTIONS:                      # every default passes its own check
-        option.check(option.default)
+RenderConfig = dataclasses.make_dataclass(
+    "RenderConfig",
+    [(o.name, Optional[o.type] if o.nullable else o.type, dataclasses.field(default=o.default)) for o in OPTIONS],
+    bases=(_RenderConfigRules,), frozen=True,
+    namespace={"__module__": __name__, "__doc__": (
+        "Render options, frozen: one field per row of OPTIONS, in its order and with its default "
+        "(docs/options.md). Unknown names are errors (RenderConfig.from_options); each value is checked "
+        "against its row, then the pipeline's combinations.")})
 
 
-_check_fields_match_table()
+for _option in OPTIONS:                         # every default passes its own row's check
+    _option.check(_option.default)
 
 
 def markdown_table() -> str:
