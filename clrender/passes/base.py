@@ -80,7 +80,7 @@ class RenderPass:
     def buffer_bytes(cls, width: int, height: int, config, scene=None) -> dict:
         """{label: bytes} of the buffers `allocate(width, height)` makes (and, given `scene`,
         `prepare_scene` at its initial capacities): clrender/render/memory.py's estimate sums
-        them; tests/test_memory.py compares them with what the pass holds."""
+        them; tests/test_pass_buffers.py compares them with what the pass holds."""
         return {}
 
     def __init__(self, device, config):

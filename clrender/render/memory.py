@@ -16,12 +16,10 @@ import pyopencl as cl
 import pyopencl.array as cla
 
 from clrender.abi import gbuffer as layout
-from clrender.device.limits import _gb, check_buffer, limits  # noqa: F401  (check_buffer: re-exported)
 from clrender.abi import structs
-from clrender.passes.base import RenderPass
-
-
+from clrender.device.limits import _gb, check_buffer, limits  # noqa: F401  (check_buffer: re-exported)
 from clrender.errors import DeviceMemoryError  # noqa: F401  (re-exported)
+from clrender.passes.base import RenderPass
 
 
 def estimate(width: int, height: int, config, scene=None) -> dict:
