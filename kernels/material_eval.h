@@ -82,7 +82,7 @@ static rgbaV sample_slot(const SceneV* sc, const BaryV* b, intV mat, int slot, i
 
 /* Texture slot `slot` as sample_slot gives it, read through the base colour's footprint `base`
  * where the host found it the same (MAT_SHARES(slot): the same mip chain sizes, wrap modes, uv
- * set and transform, and the slot's usual colour space: scene_gpu.py), so only its texels are
+ * set and transform, and the slot's usual colour space: clrender/render/scene_upload.py), so only its texels are
  * fetched: the same bits for a fraction of the work. Falls back to sample_slot unless every lane
  * with a texture in the slot shares. */
 static rgbaV sample_slot_shared(const SceneV* sc, const BaryV* b, intV mat, intV flags, int slot, intV on,
@@ -220,7 +220,7 @@ static void evaluate_material(const SceneV* sc, const BaryV* b, intV fg, Surface
 #endif
     if (ANY(want)) {
         /* Occlusion in the R of the metallic-roughness texture (glTF's ORM packing, or the upload's
-         * merge of equal-sized AO and MR images: scene_gpu.py), both through the base colour's
+         * merge of equal-sized AO and MR images: clrender/render/scene_upload.py), both through the base colour's
          * footprint: the texel is already fetched. */
         intV same = hit_mr & (tex_occ == GATHER_MS(intV, materials, mat, slots[SLOT_MR].texture))
                     & ((flags & (int)(MAT_SHARES(SLOT_MR) | MAT_SHARES(SLOT_OCCLUSION)))

@@ -1,6 +1,7 @@
 /* Structs shared by host and device. clrender/abi/structs.py holds the matching numpy dtypes
- * (tests/test_structs.py checks sizes and offsets on every device). Only 32/64-bit scalars
- * and fixed arrays: no bool, no float3, so the layout is the same on every compiler. */
+ * (tests/test_gbuffer.py::test_struct_layouts_match_device checks sizes and offsets on every
+ * device). Only 32/64-bit scalars and fixed arrays: no bool, no float3, so the layout is the same
+ * on every compiler. */
 #ifndef CLRENDER_STRUCTS_H
 #define CLRENDER_STRUCTS_H
 
