@@ -140,6 +140,10 @@ OPTIONS: tuple[Option, ...] = (
     Option("shading", str, "auto", choices=SHADING,
            help="auto: glTF metallic-roughness materials with the glTF 2.0 BRDF, the others Blinn-Phong; "
                 "blinn_phong: the report's model for every material (default {default}; docs/shading.md)"),
+    Option("multiscatter", bool, False,
+           help="multiple-scattering energy compensation of the image-based specular of layered glTF materials "
+                "(Fdez-Agüera, as the Khronos Sample Renderer; off: glTF Appendix B's single scattering; "
+                "docs/shading.md)"),
     Option("msaa", int, 1, choices=MSAA, metavar="N",
            help=_LPP + "colour sub-samples per pixel, {choices} (D3D standard patterns; default {default})"),
     Option("light_buffer_specular", str, "rgb", choices=LIGHT_BUFFER_SPECULAR,

@@ -9,7 +9,8 @@
  * pixel's view ray as shade.cl rebuilds it (ORTHO: lighting.h's parallel rays). Lit by
  * lighting.h with the lights of the run's light-culling tile (the report's light-indexed lists
  * consumed by a forward pass; the run lies in one tile: VEC divides LIGHT_TILE), the sun and shadow maps; no SSAO:
- *     c = albedo·(ambient·occlusion + diffuse) + specular + emission (unlit: albedo; docs/materials.md).
+ *     c = albedo·(ambient·occlusion + diffuse) + specular + emission (unlit: albedo; docs/materials.md);
+ * with SURFACE_LAYERS, the lanes whose material has layers: layer_shading.h's shade_layered().
  * Blending, front to back per lane: acc += T·alpha·c, T *= 1 - alpha.
  *
  * Kernel arguments: FORWARD_PARAMS below, in that order (clrender/passes/forward.py).
@@ -29,6 +30,20 @@
 #if LIGHT_TILE % VEC
 #error "a run of VEC pixels must lie in one light tile"
 #endif
+#ifndef SURFACE_LAYERS
+#define SURFACE_LAYERS 0          /* 1: a scene with layered materials (layer_shading.h; built only for one) */
+#endif
+#ifndef MULTISCATTER
+#define MULTISCATTER 0
+#endif
+#if SURFACE_LAYERS
+#include "layer_shading.h"
+#define FORWARD_LAYER_PARAMS , global const MaterialExt* material_ext, int has_tangents, global const float* sheen_lut
+#define FORWARD_LAYER_INIT , material_ext, has_tangents, sheen_lut
+#else
+#define FORWARD_LAYER_PARAMS
+#define FORWARD_LAYER_INIT
+#endif
 
 #define FORWARD_PARAMS \
     SCENE_PARAMS(prims), global const float* camera, int width, int height, float ambient, \
@@ -37,7 +52,7 @@
     global const float* shadow_atlas, int atlas_stride, global const ShadowView* shadow_views, \
     float shadow_bias, float shadow_slope_bias, float shadow_normal_offset, \
     int has_sun, global const float* sun, int sun_cascades, int spot_view0, int spot_plane0, \
-    int has_env, int env_background, ENV_PARAMS
+    int has_env, int env_background, ENV_PARAMS FORWARD_LAYER_PARAMS
 
 typedef struct {
     SceneV scene;
@@ -51,12 +66,17 @@ typedef struct {
     LightEnv env;
     int has_env;                      /* the environment's ambient light (ambient.h) */
     EnvMaps envmaps;
+#if SURFACE_LAYERS
+    global const MaterialExt* material_ext;
+    int has_tangents;
+    global const float* sheen_lut;
+#endif
 } Forward;
 
 /* A `Forward` from FORWARD_PARAMS. */
 #define FORWARD_INIT { SCENE_INIT(prims), camera, width, height, ambient, n_lights, \
                        tile_light_offsets, tile_light_counts, list_capacity, light_tiles_x, \
-                       LIGHT_ENV_INIT, has_env, ENV_INIT }
+                       LIGHT_ENV_INIT, has_env, ENV_INIT FORWARD_LAYER_INIT }
 
 typedef struct {
     floatV r, g, b;    /* albedo·(ambient + diffuse) + specular, linear HDR */
@@ -69,7 +89,8 @@ typedef struct {
 static FragmentsV shade_fragments(const Forward* f, intV pi, floatV z, intV active, int px0, int py)
 {
     const intV px = px0 + LANES;
-    const SurfaceV sf = surface_at(&f->scene, pi, active, px, (intV)py);
+    BaryV bary;
+    const SurfaceV sf = surface_bary_at(&f->scene, pi, active, px, (intV)py, &bary);
 
     const float3 eye = vload4(0, f->camera).xyz, F = vload4(1, f->camera).xyz;
     const float3 Rs = vload4(2, f->camera).xyz, Us = vload4(3, f->camera).xyz;
@@ -118,6 +139,21 @@ static FragmentsV shade_fragments(const Forward* f, intV pi, floatV z, intV acti
         out.b = select(out.b, compose_gltf(ab, f0b, db, sb, tb, amb.db, amb.sb, amb.tb, sf.occlusion, sf.eb * strength),
                        gltf);
     }
+#if SURFACE_LAYERS
+    const intV ext = select((intV)-1, GATHER_M(intV, f->scene.materials, sf.mat, ext), active);
+    intV layered = ext >= 0;
+#if VEC == 1
+    layered = layered ? 1 : 0;
+#endif
+    if (ANY(layered)) {                /* the surface layers (docs/shading.md), no SSAO */
+        const vec3V v = { -dx * inv_d, -dy * inv_d, -dz * inv_d };
+        floatV lr, lg, lb;
+        shade_layered(&f->scene, &bary, &sf, f->material_ext, ext, layered, f->has_tangents, f->sheen_lut, &f->env,
+                      first, count, wx, wy, wz, z, v, px, py, f->has_env, &f->envmaps, f->ambient, 1.0f,
+                      MULTISCATTER, &lr, &lg, &lb);
+        out.r = select(out.r, lr, layered); out.g = select(out.g, lg, layered); out.b = select(out.b, lb, layered);
+    }
+#endif
     out.a = clamp(sf.a, 0.0f, 1.0f);
     out.ox = 0.0f;
     out.oy = 0.0f;

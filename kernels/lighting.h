@@ -204,6 +204,26 @@ static inline intV light_reach(const Light* lt, floatV px, floatV py_, floatV pz
     return reach;
 }
 
+/* A(d) of the header on the lanes `near_enough` (d² < r²), 0 elsewhere: the report's window or
+ * KHR_lights_punctual's I/d² with its range window (or none). Shared with layer_shading.h. */
+static inline floatV light_falloff(const Light* lt, floatV d2, float r2, intV near_enough)
+{
+    if (lt->falloff == LIGHT_FALLOFF_REPORT) {
+        floatV q = 1.0f - d2 / r2;
+        return select((floatV)0.0f, q * q * q, near_enough);
+    }
+    floatV q = d2 / r2, win = clamp(1.0f - q * q, 0.0f, 1.0f);   /* KHR_lights_punctual: I/d², the range window */
+    if (lt->falloff == LIGHT_FALLOFF_INVERSE_SQUARE_UNBOUNDED) win = 1.0f;
+    return select((floatV)0.0f, win * win / fmax(d2, 1e-8f), near_enough);
+}
+
+/* A spot's S = t² of the header, cos_a = spot_cos() of the unit L. */
+static inline floatV spot_cone(const Light* lt, floatV cos_a)
+{
+    floatV s = clamp((cos_a - lt->cos_outer) / fmax(lt->cos_inner - lt->cos_outer, 1e-4f), 0.0f, 1.0f);
+    return s * s;
+}
+
 /* The glTF lanes' terms of a light of colour c reaching them with k = A·max(N·L, 0) (`diff`):
  * diff and spec become k·(1 − w)/π and k·D·V·(1 − w) there (the caller adds them × c like the
  * Blinn-Phong ones), and k·D·V·w·c goes to T (brdf.h). */
@@ -240,22 +260,13 @@ static inline void add_light(const LightEnv* env, const Light lt, intV fg, intV 
     if (!ANY(near_enough)) return;
     intV reach = near_enough;
 #endif
-    floatV atten;
-    if (lt.falloff == LIGHT_FALLOFF_REPORT) {
-        floatV q = 1.0f - d2 / r2;
-        atten = select((floatV)0.0f, q * q * q, near_enough);
-    } else {                               /* KHR_lights_punctual: I/d², the range window */
-        floatV q = d2 / r2, win = clamp(1.0f - q * q, 0.0f, 1.0f);
-        if (lt.falloff == LIGHT_FALLOFF_INVERSE_SQUARE_UNBOUNDED) win = 1.0f;
-        atten = select((floatV)0.0f, win * win / fmax(d2, 1e-8f), near_enough);
-    }
+    floatV atten = light_falloff(&lt, d2, r2, near_enough);
     floatV inv_l = RSQRT(fmax(d2, 1e-30f));
     lx *= inv_l; ly *= inv_l; lz *= inv_l;
     if (lt.type == LIGHT_SPOT) {
         floatV cos_a = spot_cos(&lt, lx, ly, lz);
         reach &= cos_a > lt.cos_outer;
-        floatV s = clamp((cos_a - lt.cos_outer) / fmax(lt.cos_inner - lt.cos_outer, 1e-4f), 0.0f, 1.0f);
-        atten *= s * s;
+        atten *= spot_cone(&lt, cos_a);
     }
     if (useful) *useful += select((intV)0, (intV)1, reach);
     floatV ndotl = nx * lx + ny * ly + nz * lz;

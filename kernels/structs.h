@@ -73,9 +73,53 @@ typedef struct {
     float alpha_cutoff;
     uint  flags;          /* MAT_* */
     float refraction;     /* BLEND: screen-space distortion strength of what lies behind (docs/transparency.md) */
-    int   pad[3];
+    int   ext;            /* index into MaterialExt[] (the surface layers), -1 = none */
+    int   pad[2];
     TexSlot slots[SLOT_COUNT];
 } Material;
+
+/* MaterialExt.slots: the layer texture slots (clrender.scene.material.EXT_TEXTURE_SLOTS order) */
+#define XSLOT_SPECULAR              0   /* A: specular weight */
+#define XSLOT_SPECULAR_COLOR        1   /* RGB (sRGB) */
+#define XSLOT_CLEARCOAT             2   /* R */
+#define XSLOT_CLEARCOAT_ROUGHNESS   3   /* G */
+#define XSLOT_CLEARCOAT_NORMAL      4   /* tangent-space normal */
+#define XSLOT_SHEEN_COLOR           5   /* RGB (sRGB) */
+#define XSLOT_SHEEN_ROUGHNESS       6   /* A */
+#define XSLOT_IRIDESCENCE           7   /* R */
+#define XSLOT_IRIDESCENCE_THICKNESS 8   /* G */
+#define XSLOT_ANISOTROPY            9   /* RG direction, B strength */
+#define XSLOT_COUNT                 10
+
+/* MaterialExt.layers: which layers a material has (clrender.scene.material.Material.layers) */
+#define LAYER_SPECULAR    1u    /* KHR_materials_ior and/or KHR_materials_specular */
+#define LAYER_CLEARCOAT   2u
+#define LAYER_SHEEN       4u
+#define LAYER_IRIDESCENCE 8u
+#define LAYER_ANISOTROPY  16u
+
+/* The glTF surface-extension parameters of a material with layers (kernels/surface_layers.cl,
+ * docs/shading.md): factors here, textures in the slots. */
+typedef struct {
+    float specular_color[3];   /* linear; may exceed 1 (KHR_materials_specular) */
+    float specular_factor;
+    float ior;                 /* >= 1, or 0: F0 = 1 */
+    float clearcoat;
+    float clearcoat_roughness;
+    float clearcoat_normal_scale;
+    float sheen_color[3];
+    float sheen_roughness;
+    float iridescence;
+    float iridescence_ior;
+    float iridescence_thickness_min;   /* nm */
+    float iridescence_thickness_max;   /* nm; the thickness without a texture */
+    float anisotropy_strength;
+    float anisotropy_cos;      /* cos, sin of anisotropy_rotation */
+    float anisotropy_sin;
+    uint  layers;              /* LAYER_* */
+    int   pad[4];
+    TexSlot slots[XSLOT_COUNT];
+} MaterialExt;
 
 #define WRAP_REPEAT 0
 #define WRAP_CLAMP  1

@@ -22,9 +22,11 @@
 #define ORTHO 0                 /* 1: orthographic prims (setup.cl): inv_w hold depths, barycentrics are screen-linear */
 #endif
 
-/* The surfaces of prims w (per lane; lanes outside fg: any valid index) at the centres of
- * pixels (px, py) (fixed point 256 px + 128, 256 py + 128). */
-static SurfaceV surface_at(const SceneV* sc, intV w, intV fg, intV px, intV py)
+/* The geometry of prims w (per lane; lanes outside fg: any valid index) at the centres of pixels
+ * (px, py) (fixed point 256 px + 128, 256 py + 128): sf's ids, barycentrics and unit interpolated
+ * normal (not flipped, no normal map), and the barycentrics with their derivatives in *bary_out. */
+static inline void prim_geometry(const SceneV* sc, intV w, intV fg, intV px, intV py, SurfaceV* sf_out,
+                                 BaryV* bary_out)
 {
     global const Prim* prims = sc->prims;
     SurfaceV sf;
@@ -88,11 +90,30 @@ static SurfaceV surface_at(const SceneV* sc, intV w, intV fg, intV px, intV py)
 
     sf.tri = tri; sf.flags = flags; sf.mat = mat; sf.i0 = bc.i0; sf.i1 = bc.i1; sf.i2 = bc.i2;
     sf.c0 = c0; sf.c1 = c1; sf.c2 = c2; sf.n = n;
+    *sf_out = sf;
+    *bary_out = bc;
+}
+
+/* The surfaces of prims w at the centres of pixels (px, py) (prim_geometry, then the material);
+ * their barycentrics go to *bary_out (layer_shading.h samples the layer textures with them). */
+static SurfaceV surface_bary_at(const SceneV* sc, intV w, intV fg, intV px, intV py, BaryV* bary_out)
+{
+    SurfaceV sf;
+    BaryV bc;
+    prim_geometry(sc, w, fg, px, py, &sf, &bc);
+    const intV flags = sf.flags;
     evaluate_material(sc, &bc, fg, &sf);            /* material_eval.h: colours, specular, normal map */
 
     const intV back = (flags & (int)PRIM_BACKFACE) != 0;     /* the glTF rule: flip before lighting */
     sf.n.x = select(sf.n.x, -sf.n.x, back); sf.n.y = select(sf.n.y, -sf.n.y, back);
     sf.n.z = select(sf.n.z, -sf.n.z, back);
+    *bary_out = bc;
     return sf;
+}
+
+static inline SurfaceV surface_at(const SceneV* sc, intV w, intV fg, intV px, intV py)
+{
+    BaryV bc;
+    return surface_bary_at(sc, w, fg, px, py, &bc);
 }
 #endif

@@ -52,7 +52,8 @@ def test_struct_layouts_match_device(cl_device):
                          (structs.light_dtype, ["position", "radius", "color", "type", "direction", "cos_outer",
                                                 "cos_inner", "shadow_size", "shadow", "falloff"]),
                          (structs.shadow_view_dtype, ["m", "x0", "y0", "size", "ortho", "texel", "far", "split",
-                                                      "pad"])):
+                                                      "pad"]),
+                         (structs.material_ext_dtype, list(structs.material_ext_dtype.names))):
         expect.append(dtype.itemsize)
         expect.extend(dtype.fields[n][1] for n in names)
     assert got[: len(expect)] == expect

@@ -442,7 +442,9 @@ def test_webp_is_preferred_and_source_is_the_fallback(tmp_path, monkeypatch):
     np.testing.assert_array_equal(load(path).textures[0].rgba, texture(2))
 
 
-def test_basisu_falls_back_to_source_or_errors(tmp_path):
+def test_basisu_falls_back_to_source_or_errors(tmp_path, monkeypatch):
+    """Without its decoder (its import made to fail; decoding: tests/test_ktx2.py)."""
+    monkeypatch.setitem(sys.modules, "opengl_basisu", None)
     path = _image_doc(tmp_path, {"source": 1, "extensions": {"KHR_texture_basisu": {"source": 2}}},
                       ["KHR_texture_basisu"])
     np.testing.assert_array_equal(load(path).textures[0].rgba, texture(2))

@@ -26,7 +26,18 @@ material_dtype = np.dtype([
     ("base_color", "<f4", 4), ("emissive", "<f4", 3), ("emissive_strength", "<f4"),
     ("spec_intensity", "<f4"), ("spec_power", "<f4"), ("metallic", "<f4"), ("roughness", "<f4"),
     ("normal_scale", "<f4"), ("occlusion_strength", "<f4"), ("alpha_cutoff", "<f4"), ("flags", "<u4"),
-    ("refraction", "<f4"), ("pad", "<i4", 3), ("slots", texslot_dtype, 5),
+    ("refraction", "<f4"), ("ext", "<i4"), ("pad", "<i4", 2), ("slots", texslot_dtype, 5),
+], align=True)
+
+# MaterialExt.layers bits (kernels/structs.h LAYER_*), by clrender.scene.material.Material.layers name
+LAYER_BITS = {"specular": 1, "clearcoat": 2, "sheen": 4, "iridescence": 8, "anisotropy": 16}
+material_ext_dtype = np.dtype([
+    ("specular_color", "<f4", 3), ("specular_factor", "<f4"), ("ior", "<f4"), ("clearcoat", "<f4"),
+    ("clearcoat_roughness", "<f4"), ("clearcoat_normal_scale", "<f4"), ("sheen_color", "<f4", 3),
+    ("sheen_roughness", "<f4"), ("iridescence", "<f4"), ("iridescence_ior", "<f4"),
+    ("iridescence_thickness_min", "<f4"), ("iridescence_thickness_max", "<f4"), ("anisotropy_strength", "<f4"),
+    ("anisotropy_cos", "<f4"), ("anisotropy_sin", "<f4"), ("layers", "<u4"), ("pad", "<i4", 4),
+    ("slots", texslot_dtype, 10),
 ], align=True)
 
 texinfo_dtype = np.dtype([("first_level", "<i4"), ("levels", "<i4"), ("wrap_s", "<i4"), ("wrap_t", "<i4"),
@@ -49,5 +60,5 @@ shadow_view_dtype = np.dtype([
 ], align=True)
 
 # name in structs.h -> dtype, for the layout test
-STRUCTS = {"Prim": prim_dtype, "TexSlot": texslot_dtype, "Material": material_dtype, "TexInfo": texinfo_dtype, "TexLevel": texlevel_dtype,
+STRUCTS = {"Prim": prim_dtype, "TexSlot": texslot_dtype, "Material": material_dtype, "MaterialExt": material_ext_dtype, "TexInfo": texinfo_dtype, "TexLevel": texlevel_dtype,
            "Light": light_dtype, "ShadowView": shadow_view_dtype}

@@ -158,6 +158,8 @@ def job_signature(tasks: Sequence[FrameTask], fps: float) -> dict:
     # Only when used, so the signature of a plain frames job (and --resume of older folders) is unchanged.
     if t.outputs.layout != "stem":
         job.update(layout=t.outputs.layout, depth_scale=t.outputs.depth_scale)
+    if t.variant is not None:           # only when used, as above
+        job["variant"] = t.variant
     if not isinstance(tasks, TaskPlan) and any(task.view is not None for task in tasks):
         # repr of floats is exact: any changed number differs (a TaskPlan has no views)
         job["views"] = hashlib.sha256(repr([task.view for task in tasks]).encode()).hexdigest()
@@ -345,16 +347,18 @@ def render_frames(scene_path, frames: Iterable[int], out, client=None, *, fps: f
                   width: Optional[int] = None, height: Optional[int] = None, aovs: Sequence[str] = (),
                   bit_depth: int = 8, exr: bool = False, device: Optional[str] = None, resume: bool = False,
                   quiet: bool = True, resources: Optional[dict] = None, allow: Sequence = (),
-                  **options) -> BatchResult:
+                  variant: Optional[str] = None, **options) -> BatchResult:
     """Render frames `frames` (numbers; frame f at t = f / fps) of one scene file into `out` (a
     pattern with {name}/{frame}/{time}, or a folder: out/<name>_<frame:04d>.png), on `client`
     (a dask.distributed Client) or in this process. `options` are RenderConfig options; `allow`:
-    folders outside the scene file's own that its references may read (load_scene's `allow`)."""
+    folders outside the scene file's own that its references may read (load_scene's `allow`);
+    `variant`: the glTF material variant to render (load_scene's `variant`)."""
     if not Path(scene_path).is_file():
         raise FileNotFoundError(f"{scene_path}: file not found")
     tasks, manifest_path = plan_tasks([str(scene_path)], frames, str(out), fps, width=width, height=height,
                                       outputs=Outputs(tuple(aovs), bit_depth, exr),
                                       options=tuple(sorted(options.items())), device=device,
                                       allow=tuple(str(Path(p).resolve()) for p in
-                                                  ([allow] if isinstance(allow, (str, os.PathLike)) else allow)))
+                                                  ([allow] if isinstance(allow, (str, os.PathLike)) else allow)),
+                                      variant=variant)
     return run_tasks(tasks, manifest_path, fps, client=client, resume=resume, quiet=quiet, resources=resources)

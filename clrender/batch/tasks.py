@@ -63,6 +63,7 @@ class FrameTask:
     view: Optional[Camera] = None       # replaces the scene camera (a dataset view): scene posed at `time`,
                                         # no motion (no previous camera, no previous pose)
     allow: tuple = ()                   # folders outside the scene's own its references may read (absolute)
+    variant: Optional[str] = None       # the glTF material variant to render (Scene.set_variant); None: none
 
     def paths(self) -> list[Path]:
         if self.outputs.layout == "dataset":
@@ -98,17 +99,17 @@ def scene_config(scene, options: dict):
 
 
 # -- the worker side --------------------------------------------------------------------------
-_SCENES: dict = {}                       # (path, allowed folders) -> ((mtime_ns, size), Scene)
+_SCENES: dict = {}                       # (path, allowed folders, variant) -> ((mtime_ns, size), Scene)
 _RENDERERS: dict = {}                    # (device id, w, h, config) -> Renderer
 
 
-def _scene(path: str, allow: tuple = ()):
+def _scene(path: str, allow: tuple = (), variant: Optional[str] = None):
     from clrender.loaders import load_scene
-    key = (path, tuple(allow))           # a scene refused without a folder must not be served from one allowed with it
+    key = (path, tuple(allow), variant)  # a scene refused without a folder must not be served from one allowed with it
     cached = _SCENES.get(key)
     # Reloaded when the scene file or any file it read (MTL, textures, buffers, TOML meshes) changed
     if cached is None or cached[0] != _stamps([path, *cached[1].source_files]):
-        scene = load_scene(path, allow=list(allow))
+        scene = load_scene(path, allow=list(allow), variant=variant)
         _SCENES[key] = cached = (_stamps([path, *scene.source_files]), scene)
     return cached[1]
 
@@ -150,7 +151,7 @@ def render_task(task: FrameTask) -> dict:
     on a bad frame (the caller records the error)."""
     from clrender.scene.camera import with_overrides
     start = _time.perf_counter()
-    scene = _scene(task.scene, task.allow)
+    scene = _scene(task.scene, task.allow, task.variant)
     previous = scene.pose(task.time, None if task.view is not None else task.dt)    # a view: no motion (None)
     camera, o = task.view or scene.default_camera(), task.camera
     if task.view is None and o != CameraOverride():   # (scene.bounds() costs ~20 ms on Sponza: only when needed)

@@ -34,7 +34,8 @@ def _frame_numbers(args, fps: float) -> range:
             return range(0, 1)
         if args.frames.strip().lower() == "all":
             from clrender.loaders import load_scene
-            durations = [getattr(load_scene(s, allow=allowed_folders(args)).animation, "duration", None)
+            durations = [getattr(load_scene(s, allow=allowed_folders(args), variant=args.variant).animation,
+                                 "duration", None)
                          for s in args.scenes]
             return _frames.animation_frames(max((d for d in durations if d), default=None), fps)
         return _frames.parse_frames(args.frames)
@@ -131,7 +132,7 @@ def cmd_render_frames(args, options: dict) -> int:
                                           height=args.height, outputs=Outputs(tuple(args.aov), args.bit_depth, args.exr,
                                                           args.aov_sheet),
                                           options=tuple(sorted(options.items())), camera=camera, device=args.device,
-                                          allow=allowed_folders(args))
+                                          allow=allowed_folders(args), variant=args.variant)
     except ValueError as exc:
         raise CLIError(str(exc)) from None
     check_output_options(args, [t.image for t in tasks.samples()])     # a lazy plan: first and last frames
@@ -141,7 +142,7 @@ def cmd_render_frames(args, options: dict) -> int:
     scenes = []
     for s in args.scenes:
         try:
-            scenes.append(_scene(s, allowed_folders(args)))
+            scenes.append(_scene(s, allowed_folders(args), args.variant))
         except (ValueError, OSError) as exc:
             raise CLIError(_one_line(exc) if s in str(exc) else f"{s}: {_one_line(exc)}") from None
     extra = [manifest_path] + ([Path(args.video)] if args.video else [])

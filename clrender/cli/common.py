@@ -45,9 +45,10 @@ def _debug() -> bool:
 
 
 def _load(path: str, args=None):
-    """load_scene with the folders --allow-outside lets the scene's references reach."""
+    """load_scene with the folders --allow-outside lets the scene's references reach, in the
+    material variant --variant names (if any)."""
     from clrender.loaders import load_scene
-    return load_scene(path, allow=allowed_folders(args))
+    return load_scene(path, allow=allowed_folders(args), variant=getattr(args, "variant", None))
 
 
 def allowed_folders(args) -> tuple:

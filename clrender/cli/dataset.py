@@ -153,7 +153,7 @@ def cmd_dataset(args) -> int:
     if root.exists() and not root.is_dir():
         raise CLIError(f"output {root} is not a folder")
     allow = allowed_folders(args)
-    scene = _scene(scene_path, allow)               # the batch's cache: an in-process job loads it once
+    scene = _scene(scene_path, allow, args.variant)   # the batch's cache: an in-process job loads it once
     if scene.animation is not None:
         scene.pose(0.0)
     bounds = scene.bounds()
@@ -165,7 +165,7 @@ def cmd_dataset(args) -> int:
     digits = max(4, len(str(len(cameras) - 1)))
     files = [view_files(f"{i:0{digits}d}", aovs, args.exr) for i in range(len(cameras))]
     meta = {"clrender": VERSION, "scene": scene_path, **source, "time": 0.0, "aovs": list(aovs), "exr": args.exr,
-            "depth_scale": args.depth_scale}
+            "depth_scale": args.depth_scale, **({"variant": args.variant} if args.variant is not None else {})}
     docs = export_documents(args.format, cameras, width, height, files, meta)
     views = parse_documents(docs, root)            # the reader's cameras, from the very texts written below
     if "depth" in aovs:
@@ -174,7 +174,7 @@ def cmd_dataset(args) -> int:
     outputs = Outputs(aovs, exr=args.exr, layout="dataset", depth_scale=args.depth_scale)
     tasks = [FrameTask(scene=scene_path, frame=v.index, time=0.0, dt=1.0 / FPS, image=str(v.image), outputs=outputs,
                        width=width, height=height, options=tuple(sorted(options.items())), device=args.device,
-                       view=v.camera, allow=allow) for v in views]
+                       view=v.camera, allow=allow, variant=args.variant) for v in views]
     manifest_path = root / MANIFEST_NAME
     check_outputs_spare_inputs([*(root / rel for rel in docs), *(p for t in tasks for p in t.paths()), manifest_path],
                                inputs)

@@ -97,6 +97,9 @@ def add_render_options(p) -> None:
                    help="image width (default: the scene's [render] width, else 1280)")
     p.add_argument("--height", type=_positive_int, metavar="H",
                    help="image height (default: the scene's [render] height, else 720)")
+    p.add_argument("--variant", metavar="NAME",
+                   help="render the glTF material variant NAME (KHR_materials_variants; `clrender info SCENE` "
+                        "lists them); default: each primitive's own material")
     p.add_argument("--device", metavar="NAME",
                    help="OpenCL device: P:D, an implementation (intel, pocl, oclgrind, nvidia, ...), pip or "
                         "system, or a name substring (default: $CLRENDER_DEVICE, else a GPU, else the best "

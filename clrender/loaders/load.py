@@ -14,7 +14,7 @@ SUFFIXES = (".toml", ".gltf", ".glb", ".obj", ".ply", ".stl")
 __all__ = ["load_scene", "SUFFIXES"]
 
 
-def load_scene(path, default_environment: bool = True, allow=None) -> Scene:
+def load_scene(path, default_environment: bool = True, allow=None, variant=None) -> Scene:
     """Load a scene file into a Scene (world space, triangles in load order).
 
     A glTF file (.gltf/.glb) that lights nothing itself (no KHR_lights_punctual light instanced in
@@ -27,7 +27,18 @@ def load_scene(path, default_environment: bool = True, allow=None) -> Scene:
     environment (`scene.environment` is None unless a TOML [environment] table sets one).
 
     `allow`: folders outside the scene file's own folder that the files it references may lie in
-    (clrender.loaders.context; by default a scene reads only its own folder and data URIs)."""
+    (clrender.loaders.context; by default a scene reads only its own folder and data URIs).
+
+    `variant`: the glTF material variant (KHR_materials_variants) to load with, as
+    `scene.set_variant(variant)` after loading: an unknown name is a one-line SceneError listing
+    the file's variants (`scene.variants`); None: the default materials."""
+    scene = _load_confined(path, default_environment, allow)
+    if variant is not None:
+        scene.set_variant(variant)
+    return scene
+
+
+def _load_confined(path, default_environment: bool, allow) -> Scene:
     from clrender.loaders.context import loading
     if isinstance(allow, (str, os.PathLike)):      # one folder, not its characters
         allow = [allow]

@@ -13,7 +13,7 @@ from clrender.device import limits
 from clrender.errors import DeviceMemoryError
 from clrender.passes.base import Overflow, RenderPass, empty, round_up, scan_for, zeros
 from clrender.passes.forward import (
-    FORWARD_INPUTS, LAYER_PLANES, forward_args, forward_defines, forward_grid, forward_vec)
+    FORWARD_INPUTS, LAYER_PLANES, forward_args, forward_defines, forward_grid, forward_vec, layered_kernel)
 from clrender.passes.fragments import walk_args, walk_global_size
 
 SORT_GROUP = (8, 8)
@@ -81,7 +81,7 @@ class AbufferPass(RenderPass):
                              res["frag_list_len"].data, self.offsets.data, np.int32(self.capacity),
                              np.int32(w), np.int32(h), self.frag_depth.data, self.frag_prim.data)
         with self.timed("resolve"):
-            self.resolve_kernel(self.queue, *forward_grid(w, h, self.vec),
+            layered_kernel(self, "resolve_kernel", res)(self.queue, *forward_grid(w, h, self.vec),
                                 res["frag_list_len"].data, self.offsets.data, np.int32(self.capacity),
                                 self.frag_depth.data, self.frag_prim.data, *forward_args(res, res["t_prims"]),
                                 self.layers.data)

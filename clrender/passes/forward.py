@@ -39,8 +39,24 @@ def device_light_defines(config) -> dict:
 
 
 def forward_args(res, prims) -> tuple:
-    """FORWARD_PARAMS for a frame; `prims` is the transparent prim buffer."""
+    """FORWARD_PARAMS for a frame; `prims` is the transparent prim buffer. A scene with layered
+    materials adds forward.h's SURFACE_LAYERS arguments (layered_kernel's build)."""
     env = res["light_env"]
     return (*scene_args(res, prims), res["camera_params"].data, np.int32(res["width"]), np.int32(res["height"]),
             np.float32(res["ambient"]), res["lights"].data, np.int32(res["n_lights"]), *env.lists,
-            *env.shadow_and_sun, *env_kernel_args(res))
+            *env.shadow_and_sun, *env_kernel_args(res), *res.values.get("surface_layer_args", ()))
+
+
+def layered_kernel(owner, attr: str, res):
+    """owner.<attr> (a forward kernel), or for a scene with layered materials its SURFACE_LAYERS
+    build, made the first time one is rendered (so a scene without layers never builds it)."""
+    kernel = getattr(owner, attr)
+    if "surface_layer_args" not in res.values:
+        return kernel
+    layered = owner.__dict__.get(attr + "_layered")
+    if layered is None:
+        spec = kernel.spec
+        defines = {**dict(spec.defines), "SURFACE_LAYERS": 1, "MULTISCATTER": int(owner.config.multiscatter)}
+        layered = owner.device.kernel(spec.filename, kernel.name, defines)
+        setattr(owner, attr + "_layered", layered)
+    return layered

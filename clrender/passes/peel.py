@@ -8,7 +8,7 @@ import numpy as np
 
 from clrender.passes.base import RenderPass, empty
 from clrender.passes.forward import (
-    FORWARD_INPUTS, LAYER_PLANES, forward_args, forward_defines, forward_grid, forward_vec)
+    FORWARD_INPUTS, LAYER_PLANES, forward_args, forward_defines, forward_grid, forward_vec, layered_kernel)
 from clrender.passes.fragments import walk_args, walk_global_size
 
 
@@ -48,10 +48,11 @@ class PeelPass(RenderPass):
         walk = walk_args(res)
         forward = forward_args(res, res["t_prims"])
         grid = forward_grid(w, h, self.vec)
+        shade = layered_kernel(self, "shade_kernel", res)
         for layer in range(self.config.peel_layers):
             with self.timed("find"):
                 self.find_kernel(self.queue, walk_global_size(res, t, vec), (t // vec, t), *walk,
                                  np.int32(layer), self.layer_depth.data, self.layer_prim.data)
             with self.timed("shade"):
-                self.shade_kernel(self.queue, *grid, self.layer_depth.data, self.layer_prim.data, np.int32(layer), *forward,
+                shade(self.queue, *grid, self.layer_depth.data, self.layer_prim.data, np.int32(layer), *forward,
                                   self.layers.data)

@@ -35,17 +35,19 @@ from clrender.passes.shade import ShadePass
 from clrender.passes.shadow import ShadowPass
 from clrender.passes.ssao import SsaoPass
 from clrender.passes.ssao_blur import SsaoBlurPass
+from clrender.passes.surface_layers import SurfaceLayersPass
 from clrender.passes.tonemap import TonemapPass
 
 # The frame's order (docs/variants.md, docs/post.md): geometry, the transparent fragments' walk,
 # light lists, SSAO, shadow maps, the environment, the lighting variant (deferred: shade;
 # light_prepass: light buffer, geometry again, material; light_indexed: geometry again, forward
-# shade), the transparency resolve and composite, then at the output size the resolve of
-# over-sampling and the post chain (HDR effects, tone map, LDR effects, encode).
+# shade), the surface layers of the materials that have them, the transparency resolve and
+# composite, then at the output size the resolve of over-sampling and the post chain (HDR
+# effects, tone map, LDR effects, encode).
 ORDER = (
     SetupPass, BinningPass, RasterPass, GBufferPass, ParticlesPass, FragmentsPass,
     LightCullPass, LightStencilPass, LightQuadsPass, SsaoPass, SsaoBlurPass, ShadowPass, IblPass,
-    ShadePass, LightBufferPass, RasterAgainPass, SampleGeometryPass, MaterialPass, ForwardShadePass,
+    ShadePass, LightBufferPass, RasterAgainPass, SampleGeometryPass, MaterialPass, ForwardShadePass, SurfaceLayersPass,
     AbufferPass, PeelPass, CompositePass,
     ResolvePass, BloomPass, MotionBlurPass, TonemapPass, EdgeAaPass, FxaaPass, HatchingPass, EncodePass,
 )

@@ -139,6 +139,11 @@ class Renderer:
             scene_res.buffers["materials"] = scene_res.buffers["materials_blinn_phong"]
             scene_res.values["gltf_scene"] = 0
             scene_res.values["lights"] = scene_res.values["lights_blinn_phong"]
+        elif self.config.multiscatter and scene_res["gltf_scene"]:   # every glTF material through the layers pass
+            from clrender.render.scene_upload import multiscatter_buffers
+            ms = multiscatter_buffers(scene, self.device)
+            scene_res.values["layered_materials"] = ms.pop("layered_materials")
+            scene_res.buffers.update(ms)
         upload_ms = (_time.perf_counter() - start) * 1e3
         readback, stats = self.pipeline.render(scene_res, camera, self.width, self.height, previous_camera, time)
         stats["device"] = self.device.name

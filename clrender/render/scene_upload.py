@@ -98,16 +98,68 @@ def material_records(scene: Scene, slot_textures: list | None = None) -> np.ndar
         slots = [_slot_record(tex[s], getattr(m, f"{s}_uv")) for s in TEXTURE_SLOTS]
         out[i] = (color, m.emissive, m.emissive_strength, m.specular_intensity, m.specular_power,
                   0.0 if m.metallic is None else m.metallic, m.roughness, m.normal_scale, m.occlusion_strength,
-                  m.alpha_cutoff, flags, m.refraction, (0, 0, 0), slots)
+                  m.alpha_cutoff, flags, m.refraction, -1, (0, 0), slots)
     return out
 
 
 def blinn_phong_records(records: np.ndarray) -> np.ndarray:
     """The material records with no glTF-BRDF flag: the metallic-roughness mapping onto the
-    report's Blinn-Phong terms (kernels/material_eval.h) shades everything."""
+    report's Blinn-Phong terms (kernels/material_eval.h) shades everything, layers included."""
     out = records.copy()
     out["flags"] &= np.uint32(~structs.MAT_GLTF_BRDF & 0xFFFFFFFF)
+    out["ext"] = -1
     return out
+
+
+def material_layers(m) -> frozenset:
+    """The surface layers of material m (Material.layers; none on a material without the fields)."""
+    return frozenset(getattr(m, "layers", ()))
+
+
+def layer_records(scene: Scene, records: np.ndarray) -> np.ndarray:
+    """MaterialExt[] of the materials with layers (kernels/structs.h), and each one's index set in
+    `records["ext"]` (-1 elsewhere). A scene without layers gets no record: nothing is uploaded or
+    built for it (clrender/passes/surface_layers.py)."""
+    from clrender.scene.material import EXT_TEXTURE_SLOTS
+    rows = []
+    for i, m in enumerate(scene.materials):
+        layers = material_layers(m)
+        if not layers:
+            continue
+        records["ext"][i] = len(rows)
+        slots = [_slot_record(getattr(m, f"{s}_texture"), getattr(m, f"{s}_uv")) for s in EXT_TEXTURE_SLOTS]
+        bits = sum(structs.LAYER_BITS[name] for name in layers)
+        rows.append((m.specular_color, m.specular_factor, m.ior, m.clearcoat, m.clearcoat_roughness,
+                     m.clearcoat_normal_scale, m.sheen_color, m.sheen_roughness, m.iridescence, m.iridescence_ior,
+                     m.iridescence_thickness_min, m.iridescence_thickness_max, m.anisotropy_strength,
+                     np.cos(m.anisotropy_rotation), np.sin(m.anisotropy_rotation), bits, (0, 0, 0, 0), slots))
+    return np.array(rows, structs.material_ext_dtype)
+
+
+def multiscatter_buffers(scene: Scene, device) -> dict:
+    """RenderConfig.multiscatter: {"materials", "material_ext"} with every glTF-BRDF material given a
+    MaterialExt record (layers 0 where it has none), so the surface-layers pass shades them all with
+    the energy compensation; made on first use and kept with the scene's upload."""
+    upload_res = _UPLOADS[(id(scene), device.info.id)][2]
+    if "materials_multiscatter" not in upload_res.buffers:
+        q = device.queue
+        materials = upload_res.buffers["materials"].get(q)
+        layered = layer_records(scene, materials)
+        extra = [i for i, m in enumerate(scene.materials) if materials["ext"][i] < 0
+                 and materials["flags"][i] & structs.MAT_GLTF_BRDF]
+        plain = np.zeros(len(extra), structs.material_ext_dtype)
+        plain["specular_color"], plain["specular_factor"], plain["ior"] = 1.0, 1.0, 1.5
+        plain["iridescence_ior"], plain["iridescence_thickness_max"], plain["anisotropy_cos"] = 1.3, 400.0, 1.0
+        plain["slots"]["texture"] = -1
+        materials["ext"][extra] = len(layered) + np.arange(len(extra))
+        records = np.concatenate([layered, plain]) if len(extra) else layered
+        upload_res.buffers["materials_multiscatter"] = cla.to_device(q, materials)
+        upload_res.buffers["material_ext_multiscatter"] = cla.to_device(q, records if len(records) else
+                                                                        np.zeros(1, structs.material_ext_dtype))
+        upload_res.values["layered_multiscatter"] = len(records)
+    return {"materials": upload_res.buffers["materials_multiscatter"],
+            "material_ext": upload_res.buffers["material_ext_multiscatter"],
+            "layered_materials": upload_res.values["layered_multiscatter"]}
 
 
 def surface_extras(scene: Scene) -> bool:
@@ -117,11 +169,15 @@ def surface_extras(scene: Scene) -> bool:
 
 
 def vertex_tangents(scene: Scene):
-    """The scene's tangents; generated (clrender/scene/tangents.py) when a material has a normal map and
-    the scene has none; None when nothing needs them."""
+    """The scene's tangents; generated (clrender/scene/tangents.py) when a material has a normal map,
+    a clearcoat normal map or anisotropy and the scene has none; None when nothing needs them."""
     if scene.tangents is not None:
         return scene.tangents
-    sets = sorted({m.normal_uv.texcoord for m in scene.materials if m.normal_texture >= 0})
+    sets = sorted({m.normal_uv.texcoord for m in scene.materials if m.normal_texture >= 0}
+                  | {m.clearcoat_normal_uv.texcoord for m in scene.materials
+                     if getattr(m, "clearcoat_normal_texture", -1) >= 0}
+                  | {m.anisotropy_uv.texcoord if m.anisotropy_texture >= 0 else m.normal_uv.texcoord
+                     for m in scene.materials if "anisotropy" in material_layers(m)})
     if not sets:
         return None
     from clrender.scene.tangents import generate_tangents
@@ -257,6 +313,7 @@ def upload(scene: Scene, device) -> Resources:
         return cla.to_device(q, a if a.size else np.zeros(1, dtype))
 
     textures, materials = device_materials(scene)
+    layers = layer_records(scene, materials)          # sets materials["ext"]
     uvs = scene.uvs if scene.extra_uvs is None else np.concatenate([scene.uvs[None], scene.extra_uvs])
     tangents = vertex_tangents(scene)
     res = Resources(buffers={
@@ -271,7 +328,9 @@ def upload(scene: Scene, device) -> Resources:
         # RenderConfig.shading = "blinn_phong": every material through the report's model
         "materials_blinn_phong": cla.to_device(q, blinn_phong_records(materials)),
         **upload_pool(device, textures),             # texels, tex_infos, tex_levels, srgb_lut
+        **({"material_ext": cla.to_device(q, layers)} if len(layers) else {}),
     }, values={"n_tris": scene.triangle_count, "scene_bounds": scene.bounds(),   # bounds: sun shadow fit
+               "layered_materials": len(layers), "has_tangents": int(tangents is not None),
                "n_transparent_tris": transparent_triangle_count(scene), "n_vertices": len(scene.positions),
                "has_colors": int(scene.colors is not None), "surface_extras": int(surface_extras(scene)),
                "gltf_scene": int(np.any(materials["flags"] & structs.MAT_GLTF_BRDF))})

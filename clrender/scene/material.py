@@ -16,6 +16,11 @@ from clrender.errors import SceneError
 
 ALPHA_MODES = ("OPAQUE", "MASK", "BLEND")
 TEXTURE_SLOTS = ("base_color", "metallic_roughness", "normal", "occlusion", "emissive")
+# the surface extensions' texture slots (KHR_materials_specular, _clearcoat, _sheen, _iridescence,
+# _anisotropy), in MaterialExt order; sRGB: specular_color and sheen_color, the others linear
+EXT_TEXTURE_SLOTS = ("specular", "specular_color", "clearcoat", "clearcoat_roughness", "clearcoat_normal",
+                     "sheen_color", "sheen_roughness", "iridescence", "iridescence_thickness", "anisotropy")
+LAYERS = ("specular", "clearcoat", "sheen", "iridescence", "anisotropy")
 
 
 @dataclass(frozen=True)
@@ -87,13 +92,52 @@ class Material:
     normal_uv: UVTransform = UVTransform()
     occlusion_uv: UVTransform = UVTransform()
     emissive_uv: UVTransform = UVTransform()
+    # glTF surface extensions (defaults: the extension absent; docs/materials.md "Surface extensions")
+    ior: float = 1.5                      # KHR_materials_ior: >= 1, or exactly 0 (F0 = 1)
+    specular_factor: float = 1.0          # KHR_materials_specular, [0, 1]; texture A multiplies
+    specular_texture: int = -1
+    specular_color: tuple = (1.0, 1.0, 1.0)   # linear, >= 0 (above 1 allowed); texture RGB (sRGB) multiplies
+    specular_color_texture: int = -1
+    clearcoat: float = 0.0                # KHR_materials_clearcoat, [0, 1]; texture R multiplies
+    clearcoat_texture: int = -1
+    clearcoat_roughness: float = 0.0      # [0, 1]; texture G multiplies
+    clearcoat_roughness_texture: int = -1
+    clearcoat_normal_texture: int = -1    # the coat's tangent-space normal map (linear)
+    clearcoat_normal_scale: float = 1.0
+    sheen_color: tuple = (0.0, 0.0, 0.0)  # KHR_materials_sheen, linear [0, 1]; texture RGB (sRGB) multiplies
+    sheen_color_texture: int = -1
+    sheen_roughness: float = 0.0          # [0, 1]; texture A multiplies
+    sheen_roughness_texture: int = -1
+    iridescence: float = 0.0              # KHR_materials_iridescence, [0, 1]; texture R multiplies
+    iridescence_texture: int = -1
+    iridescence_ior: float = 1.3          # >= 1
+    iridescence_thickness_min: float = 100.0  # nm, >= 0
+    iridescence_thickness_max: float = 400.0  # nm, >= min; thickness = mix(min, max, texture G)
+    iridescence_thickness_texture: int = -1
+    anisotropy_strength: float = 0.0      # KHR_materials_anisotropy, [0, 1]; texture B multiplies
+    anisotropy_rotation: float = 0.0      # radians, counter-clockwise from the tangent
+    anisotropy_texture: int = -1          # RG: direction (2x - 1), B: strength (linear)
+    specular_uv: UVTransform = UVTransform()
+    specular_color_uv: UVTransform = UVTransform()
+    clearcoat_uv: UVTransform = UVTransform()
+    clearcoat_roughness_uv: UVTransform = UVTransform()
+    clearcoat_normal_uv: UVTransform = UVTransform()
+    sheen_color_uv: UVTransform = UVTransform()
+    sheen_roughness_uv: UVTransform = UVTransform()
+    iridescence_uv: UVTransform = UVTransform()
+    iridescence_thickness_uv: UVTransform = UVTransform()
+    anisotropy_uv: UVTransform = UVTransform()
 
     def __post_init__(self):
         if self.alpha_mode not in ALPHA_MODES:
             raise SceneError(f"material {self.name!r}: alpha_mode must be one of {ALPHA_MODES}, got {self.alpha_mode!r}")
         ranges = (("opacity", 0.0, 1.0), ("refraction", 0.0, np.inf), ("roughness", 0.0, 1.0),
                   ("normal_scale", -np.inf, np.inf), ("occlusion_strength", 0.0, 1.0),
-                  ("emissive_strength", 0.0, np.inf))
+                  ("emissive_strength", 0.0, np.inf), ("specular_factor", 0.0, 1.0), ("clearcoat", 0.0, 1.0),
+                  ("clearcoat_roughness", 0.0, 1.0), ("clearcoat_normal_scale", -np.inf, np.inf),
+                  ("sheen_roughness", 0.0, 1.0), ("iridescence", 0.0, 1.0), ("iridescence_ior", 1.0, np.inf),
+                  ("iridescence_thickness_min", 0.0, np.inf), ("iridescence_thickness_max", 0.0, np.inf),
+                  ("anisotropy_strength", 0.0, 1.0), ("anisotropy_rotation", -np.inf, np.inf))
         ranges += (("metallic", 0.0, 1.0),) if self.metallic is not None else ()
         for name, lo, hi in ranges:
             v = getattr(self, name)
@@ -101,6 +145,14 @@ class Material:
                     and np.isfinite(v) and lo <= float(v) <= hi):
                 raise SceneError(f"material {self.name!r}: {name} must be a finite number in [{lo}, {hi}], got {v!r}")
             object.__setattr__(self, name, float(v))
+        if self.iridescence_thickness_max < self.iridescence_thickness_min:
+            raise SceneError(f"material {self.name!r}: iridescence_thickness_max ({self.iridescence_thickness_max}) "
+                             f"must be >= iridescence_thickness_min ({self.iridescence_thickness_min})")
+        v = self.ior        # KHR_materials_ior: >= 1, or exactly 0 (the spec's special value: F0 = 1)
+        if not (isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, bool)
+                and np.isfinite(v) and (float(v) >= 1.0 or float(v) == 0.0)):
+            raise SceneError(f"material {self.name!r}: ior must be a finite number >= 1 or exactly 0, got {v!r}")
+        object.__setattr__(self, "ior", float(v))
         if self.opacity < 1.0:
             if self.alpha_mode == "MASK":
                 raise SceneError(f"material {self.name!r}: opacity {self.opacity} < 1 needs alpha_mode OPAQUE or BLEND, "
@@ -114,7 +166,14 @@ class Material:
             raise SceneError(f"material {self.name!r}: emissive must be 3 numbers in [0, 1] "
                              f"(emissive_strength scales it), got {self.emissive!r}")
         object.__setattr__(self, "emissive", tuple(float(c) for c in e))
-        for slot in TEXTURE_SLOTS:
+        for name, hi in (("specular_color", np.inf), ("sheen_color", 1.0)):
+            c = getattr(self, name)
+            c = np.asarray(c, np.float64).reshape(-1) if not isinstance(c, str) else np.zeros(0)
+            if c.shape != (3,) or not np.isfinite(c).all() or (c < 0).any() or (c > hi).any():
+                raise SceneError(f"material {self.name!r}: {name} must be 3 finite numbers in [0, {hi}], "
+                                 f"got {getattr(self, name)!r}")
+            object.__setattr__(self, name, tuple(float(x) for x in c))
+        for slot in TEXTURE_SLOTS + EXT_TEXTURE_SLOTS:
             t = getattr(self, f"{slot}_texture")
             if not (isinstance(t, (int, np.integer)) and not isinstance(t, bool) and t >= -1):
                 raise SceneError(f"material {self.name!r}: {slot}_texture must be a texture index or -1, got {t!r}")
@@ -130,9 +189,28 @@ class Material:
         return self.emissive_strength > 0 and any(c > 0 for c in self.emissive)
 
     def textures_used(self) -> dict:
-        """{slot: (texture index, UVTransform)} of the slots with a texture."""
+        """{slot: (texture index, UVTransform)} of the base slots (TEXTURE_SLOTS) with a texture."""
         return {s: (getattr(self, f"{s}_texture"), getattr(self, f"{s}_uv")) for s in TEXTURE_SLOTS
                 if getattr(self, f"{s}_texture") >= 0}
+
+    def layer_textures_used(self) -> dict:
+        """{slot: (texture index, UVTransform)} of the surface extensions' slots (EXT_TEXTURE_SLOTS)
+        with a texture."""
+        return {s: (getattr(self, f"{s}_texture"), getattr(self, f"{s}_uv")) for s in EXT_TEXTURE_SLOTS
+                if getattr(self, f"{s}_texture") >= 0}
+
+    @property
+    def layers(self) -> frozenset:
+        """The surface-extension layers this material shades with (a subset of LAYERS). Empty for the
+        Blinn-Phong model and unlit materials, and where every extension value is degenerate (the
+        material then IS its base layer): the layers pass skips it."""
+        if self.metallic is None or self.unlit:
+            return frozenset()
+        on = {"specular": (self.ior != 1.5 or self.specular_factor != 1.0 or self.specular_color != (1.0, 1.0, 1.0)
+                           or self.specular_texture >= 0 or self.specular_color_texture >= 0),
+              "clearcoat": self.clearcoat > 0, "sheen": max(self.sheen_color) > 0,
+              "iridescence": self.iridescence > 0, "anisotropy": self.anisotropy_strength > 0}
+        return frozenset(k for k in LAYERS if on[k])
 
     @staticmethod
     def from_metallic_roughness(name, base_color, metallic, roughness, **kw) -> "Material":

@@ -28,6 +28,7 @@ from clrender.scene.camera import Camera
 from clrender.errors import SceneError
 from clrender.scene.geometry import check_positions, vertex_normals
 from clrender.scene.motion import SceneMotion
+from clrender.scene.variants import MaterialVariants
 from clrender.scene.material import (
     ALPHA_MODES, LUMA, TEXTURE_SLOTS, Material, UVTransform, metallic_roughness_to_blinn_phong)
 
@@ -155,6 +156,7 @@ class Scene(SceneMotion):
     mesh_object: Optional[np.ndarray] = None    # (len(mesh_names),) int32 index into objects
     source_files: tuple = ()                    # resolved Paths load_scene read (the scene file, its buffers,
                                                 # textures, MTL, TOML meshes, environment): outputs must not be one
+    material_variants: Optional[MaterialVariants] = None  # glTF KHR_materials_variants (set_variant); None: none
 
     def __post_init__(self):
         self.positions = np.ascontiguousarray(self.positions, dtype=np.float32).reshape(-1, 3)
@@ -183,6 +185,7 @@ class Scene(SceneMotion):
             self.extra_uvs = np.ascontiguousarray(self.extra_uvs, dtype=np.float32)
         self._rest_poses: dict = {}             # mesh index -> its geometry before any set_transform
         self._rest_tangents: dict = {}          # mesh index -> its tangents before any set_transform
+        self._variant: Optional[int] = None     # the active material variant's index (set_variant)
         self.validate()
 
     # -- construction -------------------------------------------------------------------------
@@ -321,6 +324,32 @@ class Scene(SceneMotion):
         self.lights = np.concatenate([self.lights, rec])
         return len(self.lights) - 1
 
+    # -- material variants (clrender.scene.variants) --------------------------------------------
+    @property
+    def variants(self) -> tuple:
+        """The material variant names (glTF KHR_materials_variants), file order; () without any."""
+        return () if self.material_variants is None else self.material_variants.names
+
+    @property
+    def variant(self) -> Optional[str]:
+        """The active material variant's name; None: every mesh has its default material."""
+        return None if self._variant is None else self.material_variants.names[self._variant]
+
+    def set_variant(self, name: Optional[str]) -> None:
+        """Activate material variant `name` (None: the default materials): the triangles of exactly the
+        meshes the previous and the new variant map get their new materials, in a new
+        `triangle_material` array (the next render uploads it). An unknown name is a one-line
+        SceneError listing the variants."""
+        mv = self.material_variants
+        if name is None and mv is None:
+            return
+        if mv is None:
+            raise SceneError(f"{self.source}: no material variant {name!r} (the scene has no material variants)")
+        new = None if name is None else mv.index(name, self.source)
+        mv.check(len(self.mesh_names), len(self.materials), self.source)
+        self.triangle_material = mv.switch(self.triangle_mesh, self.triangle_material, self._variant, new)
+        self._variant = new
+
     # -- queries ------------------------------------------------------------------------------
     @property
     def uv_set_count(self) -> int:
@@ -397,6 +426,8 @@ class Scene(SceneMotion):
                              f"{len(self.objects)} objects")
         if not all(isinstance(o, SceneObject) for o in self.objects):
             raise SceneError(f"{where}: objects must be SceneObject records")
+        if self.material_variants is not None:
+            self.material_variants.check(len(self.mesh_names), len(self.materials), where)
         for name, shape in (("colors", (nv, 4)), ("tangents", (nv, 4))):
             a = getattr(self, name)
             if a is not None and (np.shape(a) != shape or not np.isfinite(a).all()):
@@ -405,7 +436,7 @@ class Scene(SceneMotion):
         if self.extra_uvs is not None and np.shape(self.extra_uvs) != (k, nv, 2):
             raise SceneError(f"{where}: extra_uvs must have shape (K, {nv}, 2), got {np.shape(self.extra_uvs)}")
         for m in self.materials:
-            for slot, (tex, uv) in m.textures_used().items():
+            for slot, (tex, uv) in {**m.textures_used(), **m.layer_textures_used()}.items():
                 if not tex < len(self.textures):
                     raise SceneError(f"{where}: material {m.name!r} references missing texture {tex} ({slot})")
                 if uv.texcoord >= self.uv_set_count:

@@ -211,6 +211,10 @@ def default_cases(width: int, height: int) -> list[tuple[str, Scene, Camera]]:
     lit = _materials_case(rng)
     lit.set_environment(_check_environment(rng), intensity=0.8, rotation_deg=25.0)
     cases.append(("environment", lit, Camera.look_at((0, 0.5, 1.5), (0, 0, -3), near=0.1, far=50)))
+    # The glTF surface layers (docs/shading.md): every layer, each with a texture, under lights, a
+    # shadowed spot and the environment (kernels/surface_layers.cl, its sheen table), and a
+    # transparent layered material (forward.h's SURFACE_LAYERS build).
+    cases.append(("layers", _layers_case(rng), Camera.look_at((0, 0.5, 1.5), (0, 0, -3), near=0.1, far=50)))
     # Skins, morph targets and animated weights posed by the device (kernels/pose.cl), with the
     # velocity of the two poses.
     worm = REPO_SCENES / "worm.gltf"
@@ -261,6 +265,27 @@ def _materials_case(rng) -> Scene:
     scene.triangle_material = (np.arange(len(faces)) % n == 0).astype(np.int32)
     scene.add_random_lights(24, seed=4, radius=(1.0, 3.0), intensity=2.0)
     scene.add_spot_light((0, 3, 0), (0, -1, -1), (5, 5, 5), 12, 20, 40, shadow=True, shadow_map_size=128)
+    return scene
+
+
+def _layers_case(rng) -> Scene:
+    """_materials_case's sheet with every surface layer on its glTF material (factors and the
+    noise textures in the layer slots), a transparent layered strip, under the environment."""
+    from dataclasses import replace
+    from clrender.scene.model import UVTransform
+    scene = _materials_case(rng)
+    pbr = replace(scene.materials[0], ior=1.7, specular_factor=0.8, specular_texture=1, specular_color=(1.4, 0.9, 0.7),
+                  specular_color_texture=0, clearcoat=0.8, clearcoat_texture=3, clearcoat_roughness=0.3,
+                  clearcoat_roughness_texture=1, clearcoat_normal_texture=2, clearcoat_normal_scale=0.5,
+                  sheen_color=(0.6, 0.4, 0.9), sheen_color_texture=4, sheen_roughness=0.5, sheen_roughness_texture=3,
+                  iridescence=0.9, iridescence_texture=3, iridescence_thickness_texture=1,
+                  anisotropy_strength=0.7, anisotropy_rotation=0.6, anisotropy_texture=2,
+                  anisotropy_uv=UVTransform(scale=(2, 2)))
+    glass = replace(pbr, name="layered glass", alpha_mode="BLEND", base_color=(0.5, 0.7, 0.9, 0.5))
+    scene.materials = [pbr, scene.materials[1], glass]
+    scene.triangle_material = np.where(np.arange(len(scene.triangle_material)) % 5 == 1, 2,
+                                       scene.triangle_material).astype(np.int32)
+    scene.set_environment(_check_environment(rng), intensity=0.8, rotation_deg=25.0)
     return scene
 
 

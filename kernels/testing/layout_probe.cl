@@ -23,7 +23,7 @@ kernel void struct_layout(global int* out)
     out[i++] = OFF(Material, spec_power); out[i++] = OFF(Material, metallic); out[i++] = OFF(Material, roughness);
     out[i++] = OFF(Material, normal_scale); out[i++] = OFF(Material, occlusion_strength);
     out[i++] = OFF(Material, alpha_cutoff); out[i++] = OFF(Material, flags); out[i++] = OFF(Material, refraction);
-    out[i++] = OFF(Material, pad); out[i++] = OFF(Material, slots);
+    out[i++] = OFF(Material, ext); out[i++] = OFF(Material, pad); out[i++] = OFF(Material, slots);
     out[i++] = sizeof(TexInfo);  out[i++] = OFF(TexInfo, first_level); out[i++] = OFF(TexInfo, levels);
     out[i++] = OFF(TexInfo, wrap_s); out[i++] = OFF(TexInfo, wrap_t); out[i++] = OFF(TexInfo, lut);
     out[i++] = OFF(TexInfo, pad);
@@ -37,6 +37,15 @@ kernel void struct_layout(global int* out)
     out[i++] = OFF(ShadowView, y0); out[i++] = OFF(ShadowView, size); out[i++] = OFF(ShadowView, ortho);
     out[i++] = OFF(ShadowView, texel); out[i++] = OFF(ShadowView, far); out[i++] = OFF(ShadowView, split);
     out[i++] = OFF(ShadowView, pad);
+    out[i++] = sizeof(MaterialExt); out[i++] = OFF(MaterialExt, specular_color);
+    out[i++] = OFF(MaterialExt, specular_factor); out[i++] = OFF(MaterialExt, ior); out[i++] = OFF(MaterialExt, clearcoat);
+    out[i++] = OFF(MaterialExt, clearcoat_roughness); out[i++] = OFF(MaterialExt, clearcoat_normal_scale);
+    out[i++] = OFF(MaterialExt, sheen_color); out[i++] = OFF(MaterialExt, sheen_roughness);
+    out[i++] = OFF(MaterialExt, iridescence); out[i++] = OFF(MaterialExt, iridescence_ior);
+    out[i++] = OFF(MaterialExt, iridescence_thickness_min); out[i++] = OFF(MaterialExt, iridescence_thickness_max);
+    out[i++] = OFF(MaterialExt, anisotropy_strength); out[i++] = OFF(MaterialExt, anisotropy_cos);
+    out[i++] = OFF(MaterialExt, anisotropy_sin); out[i++] = OFF(MaterialExt, layers); out[i++] = OFF(MaterialExt, pad);
+    out[i++] = OFF(MaterialExt, slots);
 }
 
 /* in: float4 per item (x, y, z, w); out: uint4 per item: srgb8x3(xyz), oct12x2(xyz),

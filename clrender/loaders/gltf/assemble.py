@@ -25,9 +25,17 @@ Also:
   (K = the highest set any primitive has; a set a primitive lacks is zeros);
 * TANGENT -> `Scene.tangents` in world space (xyz by the node's 3x3, renormalized; w times the
   sign of its determinant); ignored without NORMAL (spec). A primitive whose material has a
-  normalTexture and no TANGENT gets `clrender.scene.tangents.generate_tangents` of its world-space
-  positions and normals and of the uv set the normal map reads; other primitives (0, 0, 0, 1)
+  normalTexture (else a clearcoat normal texture, else anisotropy: `_tangent_set`) and no TANGENT
+  gets `clrender.scene.tangents.generate_tangents` of its world-space positions and normals and of
+  the uv set that map reads; other primitives (0, 0, 0, 1)
   ("no tangent"); None when no primitive has or needs tangents;
+* KHR_materials_variants (clrender/loaders/gltf/variants.py) -> `Scene.material_variants`: the variant
+  names and, per Scene mesh, the material each variant gives it (`Scene.set_variant`); every material
+  loads, so one only a variant uses is there. Tangents are generated when the primitive's material
+  or any of its variants' needs them (a normal map, a clearcoat normal map, anisotropy);
+* EXT_mesh_gpu_instancing (clrender/loaders/gltf/instancing.py): a mesh node with instances is
+  expanded, instance-major, each instance node-world · T·R·S, its own object "<node>#<i>" (pieces
+  "<node>#<i>/<mesh>[/<p>]"); instancing on a skinned or morphing node is warned and drawn once;
 * animations (translation / rotation / scale / morph `weights` channels) -> `Scene.animation`, a
   `clrender.scene.animation.Animation` (None for static files) that `Scene.pose(t)` applies; the scene
   loads at the nodes' static transforms;
@@ -43,8 +51,8 @@ Also:
 * the camera is the first camera in traversal order, perspective (`yfov`, `znear`, `zfar`) or
   orthographic (`xmag`, `ymag`, `znear`, `zfar` -> `Camera.orthographic`: like glTF viewers, the
   image's aspect decides the horizontal extent, ymag·width/height; xmag is kept);
-* `KHR_lights_punctual`: every node of the default scene that references a light adds one light,
-  in traversal order, placed by the node's world matrix (computed here from the JSON
+* `KHR_lights_punctual` (clrender/loaders/gltf/punctual.py): every node of the default scene that
+  references a light adds one light, in traversal order, placed by the node's world matrix (from the JSON
   matrix / TRS): position = the transformed origin, direction = the transformed local -Z,
   normalized. `point` -> `Scene.add_point_light`, `spot` -> `Scene.add_spot_light` with
   innerConeAngle (default 0) and outerConeAngle (default pi/4) in degrees. Color = `color`
@@ -67,9 +75,8 @@ from typing import Optional
 import numpy as np
 
 from clrender.loaders.gltf import animation as gltf_animation
-from clrender.abi import structs
 from clrender.scene.camera import Camera
-from clrender.scene.model import Material, Scene, SceneError, SceneObject
+from clrender.scene.model import Material, Scene, SceneObject
 from clrender.scene.deform import Deformation
 from clrender.scene.geometry import BAD_COORDINATES, bad_vertex, coordinates_text, vertex_normals
 from clrender.scene.tangents import generate_tangents
@@ -77,17 +84,15 @@ from clrender.loaders import budget
 from clrender.loaders.common import Piece, assemble, check_faces, world_piece
 from clrender.loaders.gltf.document import Document, extensions_in_use, load_document
 from clrender.loaders.gltf.spec import MODE_FAN, MODE_STRIP, MODE_TRIANGLES, SUPPORTED_EXTENSIONS, attribute_sets
-from clrender.loaders.gltf.validate import node_light, punctual_lights
 from clrender.loaders.gltf.geometry import geometry_for
 from clrender.loaders.gltf.skin import deformer, read_skins
 from clrender.loaders.gltf.materials import load_materials
-from clrender.scene.lights import (
-    AUTO_RADIUS_KEY, DIRECTIONAL_KEY, auto_radius, scene_diagonal, sun_from_directional, warn_directional)
+from clrender.loaders.gltf import instancing, variants as gltf_variants
+from clrender.scene.variants import MaterialVariants
+from clrender.loaders.gltf.punctual import add_lights
 
 # zfar absent (infinite projection): far = max(FAR_FROM_NEAR * znear, 2 * farthest scene corner)
 FAR_FROM_NEAR = 1000.0
-# KHR_lights_punctual allows outerConeAngle = pi/2; Scene.add_spot_light needs < 90 degrees
-MAX_SPOT_OUTER_DEG = 89.9
 
 
 # -- traversal --------------------------------------------------------------------------------------
@@ -144,92 +149,6 @@ def _camera(doc: Document, order: list[int], geometry, scene: Scene) -> Optional
         except (KeyError, TypeError, ValueError, ZeroDivisionError, FloatingPointError) as exc:
             raise doc.err(f"camera {nodes[n]['camera']} (node {n}) is not usable: {exc}") from None
     return None
-
-
-# -- KHR_lights_punctual -------------------------------------------------------------------------------------
-def _local_matrix(node: dict) -> np.ndarray:
-    """A node's local matrix: `matrix` (column-major) or T . R . S."""
-    if "matrix" in node:
-        return np.asarray(node["matrix"], np.float64).reshape(4, 4).T
-    x, y, z, w = np.asarray(node.get("rotation", [0.0, 0.0, 0.0, 1.0]), np.float64)
-    norm = np.sqrt(x * x + y * y + z * z + w * w)
-    if norm > 0:
-        x, y, z, w = x / norm, y / norm, z / norm, w / norm
-    r = np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-                  [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-                  [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
-    m = np.eye(4)
-    m[:3, :3] = r * np.asarray(node.get("scale", [1.0, 1.0, 1.0]), np.float64)
-    m[:3, 3] = node.get("translation", [0.0, 0.0, 0.0])
-    return m
-
-
-def _world_matrices(doc: Document, order: list[int]) -> dict[int, np.ndarray]:
-    """World matrix of every node in `order` (a pre-order traversal: parents come first)."""
-    nodes = doc.list("nodes")
-    parent = {c: n for n in order for c in nodes[n].get("children", [])}
-    world: dict[int, np.ndarray] = {}
-    for n in order:
-        local = _local_matrix(nodes[n])
-        world[n] = world[parent[n]] @ local if n in parent else local
-    return world
-
-
-def _lights(doc: Document, order: list[int], scene: Scene) -> None:
-    """Add the KHR_lights_punctual lights of the default scene's nodes to `scene` (see module doc)."""
-    lights = punctual_lights(doc)
-    nodes = doc.list("nodes")
-    refs = [(n, node_light(doc, n, nodes[n])) for n in order]
-    refs = [(n, k) for n, k in refs if k is not None]
-    if not refs:
-        return
-    world = _world_matrices(doc, order)
-    diagonal = scene_diagonal(scene)
-    directional, auto = [], []
-    for n, k in refs:
-        light = lights[k]
-        what = f"KHR_lights_punctual light {k}" + (f" ({light['name']!r})" if light.get("name") else "") + \
-            f" on node {n}"
-        m = world[n]
-        position = m[:3, 3]
-        direction = m[:3, :3] @ np.array([0.0, 0.0, -1.0])
-        norm = float(np.linalg.norm(direction))
-        color = np.asarray(light.get("color", [1.0, 1.0, 1.0]), np.float64) * float(light.get("intensity", 1.0))
-        kind = light["type"]
-        if kind != "point" and not (np.isfinite(norm) and norm > 0):
-            raise doc.err(f"{what}: the node's world transform has no -Z direction (zero scale?)")
-        if kind == "directional":
-            directional.append({"direction": (direction / norm).tolist(), "color": color.tolist()})
-            continue
-        if "range" in light:
-            radius = float(light["range"])
-        else:
-            radius = auto_radius(color, diagonal)
-            auto.append(len(scene.lights))
-        try:
-            if kind == "point":
-                scene.add_point_light(position, color, radius)
-            else:
-                spot = light.get("spot", {})
-                inner = np.degrees(float(spot.get("innerConeAngle", 0.0)))
-                outer = np.degrees(float(spot.get("outerConeAngle", np.pi / 4)))
-                if outer >= MAX_SPOT_OUTER_DEG:  # the spec allows pi/2; the renderer needs < 90 degrees
-                    warnings.warn(f"{doc.path}: {what}: outerConeAngle {outer:g} deg clamped to "
-                                  f"{MAX_SPOT_OUTER_DEG} deg", stacklevel=4)
-                    outer = MAX_SPOT_OUTER_DEG
-                    inner = min(inner, outer)
-                scene.add_spot_light(position, direction / norm, color, radius, inner, outer)
-            # KHR_lights_punctual units: candela, inverse-square falloff (the range window when given)
-            scene.lights["falloff"][-1] = (structs.FALLOFF_INVERSE_SQUARE if "range" in light
-                                           else structs.FALLOFF_INVERSE_SQUARE_UNBOUNDED)
-        except SceneError as exc:
-            raise doc.err(f"{what}: {exc}") from None
-    if auto:
-        scene.settings[AUTO_RADIUS_KEY] = auto
-    if directional:
-        scene.settings[DIRECTIONAL_KEY] = directional
-        sun_from_directional(scene)
-        warn_directional(doc.path, len(directional), stacklevel=5)
 
 
 # -- vertex attributes and unsupported features ------------------------------------------------------------
@@ -295,9 +214,29 @@ def load_gltf(path) -> Scene:
     except BaseException:
         textures.cancel()
         raise
-    _lights(doc, order, scene)
+    add_lights(doc, order, scene)
     _warn_features(doc, features, notes)
     return scene
+
+
+def _tangent_set(candidates: list, attrs: dict) -> Optional[int]:
+    """The TEXCOORD set to generate tangents from for a primitive without TANGENT that may show any
+    of `candidates` (its material, then its variants' materials): the first normal map's set, else
+    the first clearcoat normal map's, else, for anisotropy, its texture's set (TEXCOORD_0 without
+    one; spec: the direction is in the tangent frame of the UVs). None: no material needs tangents
+    (or anisotropy has no TEXCOORD to build them from)."""
+    for m in candidates:
+        if m.normal_texture >= 0:
+            return m.normal_uv.texcoord
+    for m in candidates:
+        if getattr(m, "clearcoat_normal_texture", -1) >= 0:
+            return m.clearcoat_normal_uv.texcoord
+    for m in candidates:
+        if getattr(m, "anisotropy_strength", 0.0) > 0:
+            k = m.anisotropy_uv.texcoord if getattr(m, "anisotropy_texture", -1) >= 0 else 0
+            if f"TEXCOORD_{k}" in attrs:
+                return k
+    return None
 
 
 # What one drawn primitive costs while the scene is put together (common.Piece): float64 positions
@@ -373,6 +312,10 @@ def _geometry(doc: Document, path: Path, order: list[int], features: dict, notes
     objects: list[SceneObject] = []     # one per node that draws a primitive
     piece_object: list[int] = []
     path_of = _node_paths(nodes_json, order)
+    names = gltf_variants.variant_names(doc)    # KHR_materials_variants
+    doc_materials = list(materials)             # a mapping names one of these (not the default added below)
+    mesh_maps: dict = {}                        # Scene mesh (piece) -> {variant: material}
+    mesh_defaults: dict = {}                    # Scene mesh -> its own material
     for n in order:
         node = nodes_json[n]
         if "mesh" not in node:
@@ -383,6 +326,8 @@ def _geometry(doc: Document, path: Path, order: list[int], features: dict, notes
         node_name = node.get("name") or f"node{n}"
         mesh_name = mesh.get("name") or f"mesh{mi}"
         first_piece = len(pieces)
+        instances = instancing.node_instances(doc, n, node, prims, features)     # None: drawn once
+        templates: list = []        # instanced: each primitive's world_piece arguments, drawn per instance
         for p, prim in enumerate(prims):
             mode = prim.get("mode", MODE_TRIANGLES)
             what = f"mesh {mi} ({mesh_name!r}) primitive {p}"
@@ -414,9 +359,11 @@ def _geometry(doc: Document, path: Path, order: list[int], features: dict, notes
                         "default", (1.0, 1.0, 1.0, 1.0), 1.0, 1.0, double_sided=False))
                 mat = default_material
             name = f"{node_name}/{mesh_name}" + (f"/{p}" if len(prims) > 1 else "")
-            # a normal map without TANGENT: generated (clrender.scene.tangents) from the set the map reads
-            material = materials[mat]
-            tangent_uv = material.normal_uv.texcoord if material.normal_texture >= 0 and tangents is None else None
+            mapping = gltf_variants.primitive_mapping(doc, what, prim, len(names), doc_materials, attrs)
+            # a normal map (the base's or the clearcoat's) or anisotropy without TANGENT: generated
+            # (clrender.scene.tangents) from the set the map reads, for the material and its variants'
+            shown = [materials[mat], *(materials[m] for m in mapping.values())]
+            tangent_uv = _tangent_set(shown, attrs) if tangents is None else None
             skinned = "skin" in node
             if not skinned and any(a.startswith(("JOINTS_", "WEIGHTS_")) for a in attrs):
                 features.setdefault("JOINTS/WEIGHTS on a node without a skin", f"drawn unskinned (first: {what})")
@@ -435,13 +382,38 @@ def _geometry(doc: Document, path: Path, order: list[int], features: dict, notes
                     tangents, tangent_uv = generate_tangents(positions, normals, uv_set, faces), None
                 deformers.append(deformer(doc, what, name, len(pieces), n, node, mesh, prim, positions, normals,
                                           tangents, skins, notes))
+                gltf_variants.record(mesh_maps, mesh_defaults, len(pieces), mapping, mat)
                 pieces.append(Piece(name, positions, faces, mat, normals, uvs, colors, tangents, extra_uvs))
+                continue
+            if instances is not None:
+                templates.append((p, prim, what, name, matrix, positions, faces, mat, normals, uvs, colors, tangents,
+                                  extra_uvs, tangent_uv, position_ref, mapping))
                 continue
             if animation is not None:   # remember the mesh's node; a singular rest matrix builds it unposed
                 matrix = animation.add_mesh(len(pieces), n, matrix)
+            gltf_variants.record(mesh_maps, mesh_defaults, len(pieces), mapping, mat)
             pieces.append(world_piece(name, matrix, positions, faces, mat, normals, uvs, colors, tangents,
                                       extra_uvs, tangent_uv))
             _check_positions(doc, pieces[-1].positions, f"{position_ref} placed by node {n}'s world transform")
+        if instances is not None:   # instance-major: each instance's triangles together, one object each
+            for k, inst in enumerate(instances):
+                if not templates:
+                    break
+                for (p, prim, what, name, matrix, positions, faces, mat, normals, uvs, colors, tangents, extra_uvs,
+                     tangent_uv, position_ref, mapping) in templates:
+                    if k:           # the primitive's first instance was charged above
+                        _charge_piece(doc, n, mi, p, prim, f"{what} instance {k}")
+                    if animation is not None:
+                        matrix = animation.add_mesh(len(pieces), n, matrix)
+                    gltf_variants.record(mesh_maps, mesh_defaults, len(pieces), mapping, mat)
+                    piece_name = f"{node_name}#{k}{name[len(node_name):]}"
+                    pieces.append(world_piece(piece_name, matrix @ inst, positions, faces, mat, normals, uvs, colors,
+                                              tangents, extra_uvs, tangent_uv))
+                    _check_positions(doc, pieces[-1].positions, f"{position_ref} placed by node {n}'s world "
+                                                               f"transform and {instancing.NAME} instance {k}")
+                piece_object.extend([len(objects)] * len(templates))
+                objects.append(SceneObject(f"{node_name}#{k}", mesh_name, f"{path_of(n)}#{k}", node.get("extras"), n))
+            continue
         if len(pieces) > first_piece:
             piece_object.extend([len(objects)] * (len(pieces) - first_piece))
             objects.append(SceneObject(node_name, mesh_name, path_of(n), node.get("extras"), n))
@@ -457,6 +429,8 @@ def _geometry(doc: Document, path: Path, order: list[int], features: dict, notes
                                    old.extra_uvs)
             _check_positions(doc, p, f"mesh {old.name!r} posed by its skin or morph targets at load")
     scene = assemble(pieces, materials, textures, str(path), objects=objects, piece_object=piece_object)
+    if names:       # Scene meshes are the pieces, in order
+        scene.material_variants = MaterialVariants.from_meshes(names, mesh_maps, mesh_defaults)
     if deformation is not None:
         firsts = np.cumsum([0] + [len(p.positions) for p in pieces])
         deformation.attach({d.mesh: firsts[d.mesh] for d in deformers})

@@ -8,8 +8,9 @@
 * EXT_meshopt_compression (meshoptimizer): a bufferView with the extension decodes, on its first
   read, into its own bytes (modes ATTRIBUTES / TRIANGLES / INDICES, the binding's filters).
   Buffers without data (the extension's fallback placeholders) are allowed.
-* Image extensions: EXT_texture_webp (Pillow); KHR_texture_basisu has no decoder here, so a texture
-  falls back to its core `source` and, without one, is an error naming the extension.
+* Image extensions: EXT_texture_webp (Pillow); KHR_texture_basisu (opengl_basisu, clrender.loaders.ktx2).
+  Without its decoder a texture falls back to its core `source` (one note per file) and, without
+  one, is an error naming the extension and the extra.
 
 The decoders are the libraries' own (`pip install "clrender[compression]"`), imported lazily:
 without one, a file that requires the extension, or whose data has no uncompressed fallback, is
@@ -21,6 +22,7 @@ functions assert on are checked here first).
 from __future__ import annotations
 
 import importlib
+import warnings
 from typing import Optional
 
 import numpy as np
@@ -31,10 +33,9 @@ from clrender.loaders.gltf.spec import (  # noqa: F401  (QUANTIZATION, EXTENSION
 from clrender.loaders.gltf.spec import COMPRESSION_EXTENSIONS as EXTENSIONS  # noqa: F401
 INSTALL = 'pip install "clrender[compression]"'
 # extension -> (module to import, the PyPI package that provides it)
-PACKAGES = {DRACO: ("DracoPy", "DracoPy"), MESHOPT: ("meshoptimizer", "meshoptimizer")}
-# pyktx (libktx's binding) has no wheels: it builds only against an installed libktx
-BASISU_WHY = ("no KTX2 / Basis Universal transcoder is available to clrender (pyktx has no wheels and "
-              "needs libktx installed)")
+PACKAGES = {DRACO: ("DracoPy", "DracoPy"), MESHOPT: ("meshoptimizer", "meshoptimizer"),
+            BASISU: ("opengl_basisu", "opengl_basisu")}     # KTX2: clrender.loaders.ktx2
+BASISU_WHY = f"the opengl_basisu package that decodes KTX2 is not installed: {INSTALL}"
 MESHOPT_MODES = ("ATTRIBUTES", "TRIANGLES", "INDICES")
 MESHOPT_FILTERS = ("NONE", "OCTAHEDRAL", "QUATERNION", "EXPONENTIAL")
 
@@ -72,18 +73,21 @@ def image_extension_available(name: str) -> Optional[bool]:
     if name == WEBP:
         return webp_available()
     if name == BASISU:
-        return False
+        return available(BASISU)
     return None
 
 
 def check_required(doc, required: list) -> None:
-    """extensionsRequired: a supported extension whose decoder is missing is an error up front."""
+    """extensionsRequired: a supported extension whose decoder is missing is an error up front;
+    KHR_texture_basisu only used without its decoder: one note that the `source` images are used."""
+    used = doc.json.get("extensionsUsed") or []
+    if isinstance(used, list) and BASISU in used and BASISU not in required and not available(BASISU):
+        warnings.warn(f"{doc.path}: glTF extension {BASISU}: {BASISU_WHY}; textures use their fallback "
+                      f"`source` images", stacklevel=4)
     for ext in required:
         if ext in PACKAGES and not available(ext):
             raise doc.err(f"requires glTF extension {ext} (extensionsRequired), which needs the "
                           f"{PACKAGES[ext][1]} package (not installed): {INSTALL}")
-        if ext == BASISU:
-            raise doc.err(f"requires glTF extension {BASISU} (extensionsRequired): {BASISU_WHY}")
         if ext == WEBP and not webp_available():
             raise doc.err(f"requires glTF extension {WEBP} (extensionsRequired), but this Pillow was built "
                           f"without WebP support")

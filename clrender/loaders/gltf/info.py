@@ -3,7 +3,8 @@ animations and extensions, read from the glTF document itself (not from the load
 leave skins and morph targets out).
 
     details = gltf_details("model.gltf")   # {"skins": [...], "morph_targets": [...], "animations": [...],
-                                            #  "extensions_used": [...], "extensions_required": [...]}
+                                            #  "extensions_used": [...], "extensions_required": [...],
+                                            #  "variants": [...], "material_extensions": [...]}
     lines = format_details(details)         # the text sections of `clrender info`
 
 `empty_details()` is the same shape for the other scene formats (every list empty).
@@ -17,7 +18,8 @@ import numpy as np
 from clrender.scene.model import SceneError
 
 GLTF_SUFFIXES = (".gltf", ".glb")
-DETAIL_KEYS = ("skins", "morph_targets", "animations", "extensions_used", "extensions_required")
+DETAIL_KEYS = ("skins", "morph_targets", "animations", "extensions_used", "extensions_required", "variants",
+               "material_extensions")
 PATH_ORDER = ("translation", "rotation", "scale", "weights")
 MORPH_ORDER = ("POSITION", "NORMAL", "TANGENT")
 
@@ -39,7 +41,8 @@ def gltf_details(path) -> dict:
     try:
         return {"skins": _skins(doc), "morph_targets": _morph_targets(doc), "animations": _animations(doc),
                 "extensions_used": _names(doc, "extensionsUsed"),
-                "extensions_required": _names(doc, "extensionsRequired")}
+                "extensions_required": _names(doc, "extensionsRequired"),
+                "variants": _variants(doc), "material_extensions": _material_extensions(doc)}
     except SceneError:
         raise
     except (KeyError, TypeError, ValueError, AttributeError, IndexError) as exc:
@@ -172,6 +175,43 @@ def _animations(doc) -> list[dict]:
     return out
 
 
+def _variants(doc) -> list[dict]:
+    """KHR_materials_variants: per variant its name, how many primitives map it and to which materials
+    (the mappings as written; the loader warns about and ignores invalid ones)."""
+    from clrender.loaders.gltf.variants import NAME
+    def part(obj, key, kind):           # obj[key] when obj is an object and it is of `kind`, else empty
+        value = obj.get(key) if isinstance(obj, dict) else None
+        return value if isinstance(value, kind) else kind()
+
+    root = part(part(doc.json, "extensions", dict), NAME, dict)
+    out = [{"index": i, "name": part(v, "name", str) or None, "primitives": 0, "materials": []}
+           for i, v in enumerate(part(root, "variants", list))]
+    for mesh in doc.list("meshes"):
+        for prim in part(mesh, "primitives", list):
+            seen = set()
+            for mapping in part(part(part(prim, "extensions", dict), NAME, dict), "mappings", list):
+                for v in part(mapping, "variants", list):
+                    if isinstance(v, int) and 0 <= v < len(out) and v not in seen:
+                        seen.add(v)
+                        out[v]["primitives"] += 1
+                        if mapping.get("material") not in out[v]["materials"]:
+                            out[v]["materials"].append(mapping.get("material"))
+    for v in out:
+        v["materials"] = sorted(m for m in v["materials"] if isinstance(m, int))
+    return out
+
+
+def _material_extensions(doc) -> list[dict]:
+    """Per KHR_materials_* extension (sorted by name), how many materials use it."""
+    counts: dict = {}
+    for mat in doc.list("materials"):
+        ext = mat.get("extensions") if isinstance(mat, dict) else None
+        for name in ext if isinstance(ext, dict) else ():
+            if str(name).startswith("KHR_materials_"):
+                counts[str(name)] = counts.get(str(name), 0) + 1
+    return [{"name": k, "materials": counts[k]} for k in sorted(counts)]
+
+
 # -- text -------------------------------------------------------------------------------------------
 def _label(index: int, name) -> str:
     return f"{index} {name!r}" if name else str(index)
@@ -204,6 +244,14 @@ def format_details(details: dict) -> list[str]:
         lines.append(f"  animation {_label(a['index'], a['name'])}: {a['channels']} channels "
                      f"({_counted(a['paths'])}), {a['samplers']} samplers ({_counted(a['interpolations'])}), "
                      f"duration {a['duration']:g} s")
+    variants = details.get("variants", [])
+    lines.append(f"material variants: {len(variants) or 'none'}")
+    for v in variants:
+        used = f", material(s) {', '.join(map(str, v['materials']))}" if v["materials"] else ""
+        lines.append(f"  variant {_label(v['index'], v['name'])}: {v['primitives']} primitive(s){used}")
+    counted = details.get("material_extensions", [])
+    lines.append("material extensions: " + (", ".join(
+        f"{e['name']} ({e['materials']} material{'s' if e['materials'] != 1 else ''})" for e in counted) or "none"))
     lines.append(f"extensions used: {', '.join(details['extensions_used']) or 'none'}")
     lines.append(f"extensions required: {', '.join(details['extensions_required']) or 'none'}")
     return lines

@@ -1,9 +1,12 @@
 """glTF 2.0 materials and textures -> clrender Materials and Textures (docs/materials.md).
 
-Every core material property, KHR_materials_emissive_strength, KHR_materials_unlit, and on every
-textureInfo its texCoord and KHR_texture_transform (`UVTransform`). Images are decoded in
-parallel (`start_images`), while the loader reads the geometry; a texture is shared by (image, wrap modes, colour space): base colour
-and emissive images are sRGB, the others linear.
+Every core material property, KHR_materials_emissive_strength, KHR_materials_unlit, the surface
+extensions (KHR_materials_ior, _specular, _clearcoat, _sheen, _iridescence, _anisotropy: read by
+clrender.loaders.gltf.surface, whose out-of-range or ill-typed values are clamped or defaulted with
+one warning each), and on every textureInfo its texCoord and KHR_texture_transform (`UVTransform`).
+Images are decoded in parallel (`start_images`), while the loader reads the geometry; a texture is
+shared by (image, wrap modes, colour space): base colour, emissive, specular colour and sheen
+colour images are sRGB, the others linear.
 
 An image file that is missing or cannot be decoded (and an embedded image that cannot be decoded)
 is not an error: one warning names the file and the materials that use it, those materials' slots
@@ -14,14 +17,16 @@ from __future__ import annotations
 import warnings
 from urllib.parse import unquote
 
+from clrender.scene.material import EXT_TEXTURE_SLOTS
 from clrender.scene.model import TEXTURE_SLOTS, Material, SceneError, Texture, UVTransform
 from clrender.loaders import confine
 from clrender.loaders.common import decode_image, start_images
 from clrender.loaders.gltf.document import Document, texture_source
-from clrender.loaders.gltf.spec import TEXTURE_INFOS, WRAP_MODES
+from clrender.loaders.gltf.spec import EXT_TEXTURE_INFOS, TEXTURE_INFOS, WRAP_MODES
+from clrender.loaders.gltf.surface import layer_texture, layer_textures, surface_values
 from clrender.loaders.gltf.validate import data_uri, material_textures, texcoord_of
 
-SRGB_SLOTS = {slot: srgb for slot, _, srgb in TEXTURE_INFOS}
+SRGB_SLOTS = {slot: srgb for slot, _, srgb in TEXTURE_INFOS} | {slot: srgb for slot, _, _, srgb in EXT_TEXTURE_INFOS}
 NEAREST = 9728
 # glTF 2.0 material properties (a misspelt one would otherwise silently give the default material)
 MATERIAL_KEYS = {"name", "extensions", "extras", "pbrMetallicRoughness", "normalTexture", "occlusionTexture",
@@ -88,6 +93,9 @@ def load_materials(doc: Document, features: dict):
         if not isinstance(color, list) or len(color) != 4:
             raise doc.err(f"{where}: baseColorFactor needs 4 numbers")
         kw = {}
+        if "KHR_materials_pbrSpecularGlossiness" in ext:    # archived model: converted at load (specgloss.py)
+            from clrender.loaders.gltf.specgloss import convert
+            mat, color, pbr = convert(doc, where, mat, kw, texture, _image_job, (slots, jobs, names, keys, users))
         for slot, label, info in material_textures(doc, m, mat):
             kw[f"{slot}_texture"] = texture(info, SRGB_SLOTS[slot], f"material {m} ({name!r}) {label}")
             kw[f"{slot}_uv"] = uv_transform(doc, f"{where} {label}", info)
@@ -98,6 +106,18 @@ def load_materials(doc: Document, features: dict):
         strength = ext.get("KHR_materials_emissive_strength")
         if strength is not None:
             kw["emissive_strength"] = (strength or {}).get("emissiveStrength", 1.0)
+        values, problems = surface_values(ext)
+        kw.update(values)
+        for slot, label, info in layer_textures(mat):
+            tex, bad = layer_texture(info, len(textures_json), normal=slot == "clearcoat_normal")
+            problems += [f"{label} {p}" if p.startswith("must") else f"{label}.{p}" for p in bad]
+            if tex["index"] >= 0:
+                kw[f"{slot}_texture"] = texture({"index": tex["index"]}, SRGB_SLOTS[slot], f"{where} {label}")
+                kw[f"{slot}_uv"] = UVTransform(tex["texcoord"], tex["offset"], tex["rotation"], tex["scale"])
+            if slot == "clearcoat_normal":
+                kw["clearcoat_normal_scale"] = tex["normal_scale"]
+        for p in problems:      # the issue's bad-input rule: one warning each, the load goes on
+            warnings.warn(f"{doc.path}: {where}: {p}", stacklevel=3)
         try:
             materials.append(Material.from_metallic_roughness(
                 name, tuple(color), pbr.get("metallicFactor", 1.0), pbr.get("roughnessFactor", 1.0),
@@ -150,7 +170,7 @@ def _drop_textures(materials: list, remap: dict, count: int) -> None:
     them and the Scene being assembled already holds these very objects (common.assemble copies
     the list before it calls textures()), so replacing them in `materials` would not reach it."""
     for m in materials:
-        for slot in TEXTURE_SLOTS:
+        for slot in TEXTURE_SLOTS + EXT_TEXTURE_SLOTS:
             t = getattr(m, f"{slot}_texture")
             if 0 <= t < count:
                 object.__setattr__(m, f"{slot}_texture", remap.get(t, -1))

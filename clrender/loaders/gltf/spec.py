@@ -18,10 +18,19 @@ WEBP, BASISU = "EXT_texture_webp", "KHR_texture_basisu"
 COMPRESSION_EXTENSIONS = frozenset({DRACO, MESHOPT, QUANTIZATION})
 # The extensions clrender implements. A file that lists any other in extensionsRequired is refused
 # (SceneError naming it); other extensions it merely uses are ignored with one warning each
-# (clrender.loaders.gltf). EXT_texture_webp: `texture_source` reads its image (Pillow decodes WebP);
+# (clrender.loaders.gltf). EXT_texture_webp: `texture_source` reads its image (Pillow decodes WebP;
+# KHR_texture_basisu: clrender.loaders.ktx2);
 # KHR_mesh_quantization, KHR_draco_mesh_compression, EXT_meshopt_compression: `compression`.
+# The surface extensions (clrender.loaders.gltf.materials reads them into Material's fields).
+SURFACE_EXTENSIONS = frozenset({"KHR_materials_ior", "KHR_materials_specular", "KHR_materials_clearcoat",
+                                "KHR_materials_sheen", "KHR_materials_iridescence", "KHR_materials_anisotropy"})
+# This is the single table of implemented extension names: add a name here when it is implemented.
 SUPPORTED_EXTENSIONS = frozenset({"KHR_materials_emissive_strength", "KHR_materials_unlit", "KHR_texture_transform",
-                                  "KHR_lights_punctual", WEBP}) | COMPRESSION_EXTENSIONS
+                                  "KHR_lights_punctual", WEBP, BASISU,
+                                  "KHR_materials_pbrSpecularGlossiness",     # converted at load: specgloss.py
+                                  "KHR_materials_variants",                  # loaders/gltf/variants.py
+                                  "EXT_mesh_gpu_instancing",                 # expanded: loaders/gltf/instancing.py
+                                  }) | COMPRESSION_EXTENSIONS | SURFACE_EXTENSIONS
 # Vertex attribute component types (glTF 2.0, "Meshes"): (componentType, normalized)
 FLOAT = {(5126, False)}
 UNORM_8_16 = {(5121, True), (5123, True)}
@@ -48,6 +57,18 @@ TEXTURE_INFOS = (("base_color", ("pbrMetallicRoughness", "baseColorTexture"), Tr
                  ("normal", ("normalTexture",), False),
                  ("occlusion", ("occlusionTexture",), False),
                  ("emissive", ("emissiveTexture",), True))
+# the surface extensions' texture slots (Material.EXT_TEXTURE_SLOTS): (clrender slot, extension, its
+# textureInfo property, sRGB image)
+EXT_TEXTURE_INFOS = (("specular", "KHR_materials_specular", "specularTexture", False),
+                     ("specular_color", "KHR_materials_specular", "specularColorTexture", True),
+                     ("clearcoat", "KHR_materials_clearcoat", "clearcoatTexture", False),
+                     ("clearcoat_roughness", "KHR_materials_clearcoat", "clearcoatRoughnessTexture", False),
+                     ("clearcoat_normal", "KHR_materials_clearcoat", "clearcoatNormalTexture", False),
+                     ("sheen_color", "KHR_materials_sheen", "sheenColorTexture", True),
+                     ("sheen_roughness", "KHR_materials_sheen", "sheenRoughnessTexture", False),
+                     ("iridescence", "KHR_materials_iridescence", "iridescenceTexture", False),
+                     ("iridescence_thickness", "KHR_materials_iridescence", "iridescenceThicknessTexture", False),
+                     ("anisotropy", "KHR_materials_anisotropy", "anisotropyTexture", False))
 GLB_MAGIC, GLB_JSON, GLB_BIN = 0x46546C67, 0x4E4F534A, 0x004E4942
 LIGHT_TYPES = ("directional", "point", "spot")
 

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import base64
 import binascii
+import itertools
 from typing import TYPE_CHECKING
 from urllib.parse import unquote
 
@@ -19,6 +20,7 @@ import numpy as np
 from clrender.scene.model import SceneError
 from clrender.loaders import budget, confine
 from clrender.loaders.gltf import compression
+from clrender.loaders.gltf.surface import layer_texture, layer_textures
 from clrender.loaders.gltf.spec import (
     ATTRIBUTE_FORMATS, COMPONENT_NAMES, COMPONENT_TYPES, FLOAT_ATTRIBUTES, INTS_8_16, LIGHT_TYPES, MODE_FAN,
     MODE_STRIP, MODE_TRIANGLES, QUANTIZED_FORMATS, SUPPORTED_EXTENSIONS, TEXTURE_INFOS, TYPE_SIZES, WRAP_MODES,
@@ -335,10 +337,16 @@ def texcoord_of(doc: Document, what: str, info: dict) -> int:
 
 def _check_texcoords(doc: Document, what: str, m: int, attrs: dict) -> None:
     """Every texture of material `m` reads a TEXCOORD set that primitive `what` has (the glTF
-    validator's MESH_PRIMITIVE_TOO_FEW_TEXCOORDS is an error, not a warning)."""
+    validator's MESH_PRIMITIVE_TOO_FEW_TEXCOORDS is an error, not a warning). The surface
+    extensions' textures too, where well-formed (a malformed one is dropped with a warning when the
+    materials load: clrender.loaders.gltf.surface)."""
     mat = doc.get("materials", m, what)
-    for slot, label, info in material_textures(doc, m, mat):
-        k = texcoord_of(doc, f"material {m} ({mat.get('name', '')!r}) {label}", info)
+    core = ((label, texcoord_of(doc, f"material {m} ({mat.get('name', '')!r}) {label}", info))
+            for slot, label, info in material_textures(doc, m, mat))
+    layers = ((label, tex["texcoord"]) for label, (tex, _) in
+              ((label, layer_texture(info, len(doc.list("textures")))) for slot, label, info in layer_textures(mat))
+              if tex["index"] >= 0)
+    for label, k in itertools.chain(core, layers):
         if f"TEXCOORD_{k}" not in attrs:
             have = ", ".join(f"TEXCOORD_{n}" for n in attribute_sets(attrs, "TEXCOORD")) or "none"
             raise doc.err(f"{what}: material {m} ({mat.get('name', '')!r}) reads its {label} from TEXCOORD_{k}, "
