@@ -314,8 +314,7 @@ def test_sun_cascades_are_kept_when_the_camera_moves_less_than_their_grid(device
     shift = np.array([2e-3, 0.0, 1e-3])
     nudged = Camera.look_at(np.add(CAMERA.eye, shift), np.add(CAMERA.target, shift), fov_y_deg=50, near=0.1, far=60)
     frame = r.render(scene, nudged)
-    assert frame.stats["shadow_maps"] == 4 and frame.stats["shadow_maps_reused"] == 4
-    assert frame.stats["shadow_ms"] < 1.0
+    assert frame.stats["shadow_maps"] == 4 and frame.stats["shadow_maps_reused"] == 4   # none rendered
     fresh = clrender.Renderer(W, H, device=device.id).render(scene, nudged)
     np.testing.assert_array_equal(frame.shadow, fresh.shadow)
     np.testing.assert_array_equal(frame.color, fresh.color)
