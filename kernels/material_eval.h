@@ -38,6 +38,29 @@ static inline intV slot_lanes(const SceneV* sc, intV mat, int slot, intV on, int
     return active;
 }
 
+/* Texture `tex` (per lane) sampled trilinearly where `active` through uv set `texcoord` and the
+ * KHR_texture_transform matrix m0..m5 (uv' = (m0 u + m1 v + m2, m3 u + m4 v + m5)), the LOD from
+ * the transformed screen derivatives; its footprint to *fp. Shared by the base slots and the
+ * surface layers' slots (layer_shading.h). */
+static inline rgbaV sample_uv_set(const SceneV* sc, const BaryV* b, intV tex, intV texcoord, floatV m0, floatV m1,
+                                  floatV m2, floatV m3, floatV m4, floatV m5, intV active, FootprintV* fp)
+{
+    const intV set = texcoord * sc->n_vertices;
+    const intV j0 = 2 * (set + b->i0), j1 = 2 * (set + b->i1), j2 = 2 * (set + b->i2);
+    global const float* uvs = sc->uvs;
+    const floatV u0 = GATHER_FS(uvs, j0), v0 = GATHER_FS(uvs, j0 + 1);
+    const floatV u1 = GATHER_FS(uvs, j1), v1 = GATHER_FS(uvs, j1 + 1);
+    const floatV u2 = GATHER_FS(uvs, j2), v2 = GATHER_FS(uvs, j2 + 1);
+    const floatV u = b->c0 * u0 + b->c1 * u1 + b->c2 * u2, v = b->c0 * v0 + b->c1 * v1 + b->c2 * v2;
+    const floatV dux = (b->c1x - b->c1) * (u1 - u0) + (b->c2x - b->c2) * (u2 - u0);
+    const floatV dvx = (b->c1x - b->c1) * (v1 - v0) + (b->c2x - b->c2) * (v2 - v0);
+    const floatV duy = (b->c1y - b->c1) * (u1 - u0) + (b->c2y - b->c2) * (u2 - u0);
+    const floatV dvy = (b->c1y - b->c1) * (v1 - v0) + (b->c2y - b->c2) * (v2 - v0);
+    const floatV tu = m0 * u + m1 * v + m2, tv = m3 * u + m4 * v + m5;
+    return trilinearV(sc->texels, sc->srgb_lut, sc->tex_infos, sc->tex_levels, max(tex, 0), active, tu, tv,
+                      m0 * dux + m1 * dvx, m3 * dux + m4 * dvx, m0 * duy + m1 * dvy, m3 * duy + m4 * dvy, fp);
+}
+
 /* Texture slot `slot` of materials mat, sampled where `on` and the slot has a texture (*hit
  * set there); (1, 1, 1, 1) elsewhere. Its footprint goes to *fp_out (when not NULL) for the
  * slots that share it (sample_slot_shared). */
@@ -50,30 +73,14 @@ static rgbaV sample_slot(const SceneV* sc, const BaryV* b, intV mat, int slot, i
     *hit = active;
     rgbaV out = { 1.0f, 1.0f, 1.0f, 1.0f };
     if (!ANY(active)) return out;
-    /* The slot's uv set at the pixel and its derivatives. */
-    const intV set = GATHER_MS(intV, materials, mat, slots[slot].texcoord) * sc->n_vertices;
-    const intV j0 = 2 * (set + b->i0), j1 = 2 * (set + b->i1), j2 = 2 * (set + b->i2);
-    global const float* uvs = sc->uvs;
-    const floatV u0 = GATHER_FS(uvs, j0), v0 = GATHER_FS(uvs, j0 + 1);
-    const floatV u1 = GATHER_FS(uvs, j1), v1 = GATHER_FS(uvs, j1 + 1);
-    const floatV u2 = GATHER_FS(uvs, j2), v2 = GATHER_FS(uvs, j2 + 1);
-    const floatV u = b->c0 * u0 + b->c1 * u1 + b->c2 * u2, v = b->c0 * v0 + b->c1 * v1 + b->c2 * v2;
-    const floatV dux = (b->c1x - b->c1) * (u1 - u0) + (b->c2x - b->c2) * (u2 - u0);
-    const floatV dvx = (b->c1x - b->c1) * (v1 - v0) + (b->c2x - b->c2) * (v2 - v0);
-    const floatV duy = (b->c1y - b->c1) * (u1 - u0) + (b->c2y - b->c2) * (u2 - u0);
-    const floatV dvy = (b->c1y - b->c1) * (v1 - v0) + (b->c2y - b->c2) * (v2 - v0);
-    /* KHR_texture_transform: uv' = M (u, v, 1); derivatives through the linear part. */
-    const floatV m0 = GATHER_MS(floatV, materials, mat, slots[slot].uv[0]);
-    const floatV m1 = GATHER_MS(floatV, materials, mat, slots[slot].uv[1]);
-    const floatV m2 = GATHER_MS(floatV, materials, mat, slots[slot].uv[2]);
-    const floatV m3 = GATHER_MS(floatV, materials, mat, slots[slot].uv[3]);
-    const floatV m4 = GATHER_MS(floatV, materials, mat, slots[slot].uv[4]);
-    const floatV m5 = GATHER_MS(floatV, materials, mat, slots[slot].uv[5]);
-    const floatV tu = m0 * u + m1 * v + m2, tv = m3 * u + m4 * v + m5;
     FootprintV fp;
-    const rgbaV t = trilinearV(sc->texels, sc->srgb_lut, sc->tex_infos, sc->tex_levels, max(tex, 0), active, tu, tv,
-                               m0 * dux + m1 * dvx, m3 * dux + m4 * dvx, m0 * duy + m1 * dvy, m3 * duy + m4 * dvy,
-                               &fp);
+    const rgbaV t = sample_uv_set(sc, b, tex, GATHER_MS(intV, materials, mat, slots[slot].texcoord),
+                                  GATHER_MS(floatV, materials, mat, slots[slot].uv[0]),
+                                  GATHER_MS(floatV, materials, mat, slots[slot].uv[1]),
+                                  GATHER_MS(floatV, materials, mat, slots[slot].uv[2]),
+                                  GATHER_MS(floatV, materials, mat, slots[slot].uv[3]),
+                                  GATHER_MS(floatV, materials, mat, slots[slot].uv[4]),
+                                  GATHER_MS(floatV, materials, mat, slots[slot].uv[5]), active, &fp);
     if (fp_out) *fp_out = fp;
     out.r = select(out.r, t.r, active); out.g = select(out.g, t.g, active);
     out.b = select(out.b, t.b, active); out.a = select(out.a, t.a, active);
