@@ -16,6 +16,9 @@
  *          (a pixel's list: [offset, offset + len)); scene, camera and lights: FORWARD_PARAMS.
  *          out: layers float[7][W·H] = blended colour (3 planes), transmittance, refraction
  *          offset x, y (pixels), the nearest fragment's triangle id (int bits, -1: none).
+ *          TRANSMISSION (forward.h, transmission.h): a last argument tx_planes float[9][W·H] (forward.h
+ *          store_tx); T per channel, the lookup set by the first transmissive or refracting fragment,
+ *          the transmittance plane their mean, the refraction offset plane the G channel's.
  * Work-groups: 2-D, any shape; sort: a pixel per work-item; resolve: VEC pixels per work-item
  * (vec.h). No barriers, no local memory.
  */
@@ -90,7 +93,11 @@ kernel void abuffer_sort(global const int* list_len, global const int* list_offs
 
 kernel void abuffer_resolve(global const int* list_len, global const int* list_offsets, int capacity,
                             global const float* frag_depth, global const int* frag_prim, FORWARD_PARAMS,
-                            global float* layers)
+                            global float* layers
+#if TRANSMISSION
+                            , global float* tx_planes
+#endif
+                            )
 {
     const int px0 = get_global_id(0) * VEC, py = get_global_id(1);
     if (px0 >= width || py >= height) return;
@@ -107,6 +114,32 @@ kernel void abuffer_resolve(global const int* list_len, global const int* list_o
     const Forward f = FORWARD_INIT;
     floatV ar = 0.0f, ag = 0.0f, ab = 0.0f, t = 1.0f, ox = 0.0f, oy = 0.0f;
     intV nearest = -1;
+#if TRANSMISSION   /* per-channel T, the lookup (forward.h take_lookup), the nearest transmissive depth */
+    floatV tr = 1.0f, tg = 1.0f, tb = 1.0f, lod = -1.0f, oxr = 0.0f, oyr = 0.0f, oxb = 0.0f, oyb = 0.0f;
+    floatV near_z = -1.0f;
+    for (int i = 0; i < longest; ++i) {
+        const intV active = ((intV)i < n) & (fmax(tr, fmax(tg, tb)) >= TRANSMITTANCE_EPSILON);
+        if (!ANY(active)) break;
+        intV pi = 0;
+        floatV z = 1.0f;
+        for (int l = 0; l < VEC; ++l)
+            if (LANE_I(active, l)) {
+                LANE_I(pi, l) = frag_prim[LANE_I(offset, l) + i];
+                LANE_F(z, l) = frag_depth[LANE_I(offset, l) + i];
+            }
+        const FragmentsV fr = shade_fragments(&f, pi, z, active, px0, py);
+        if (i == 0) {
+            near_z = select((floatV)-1.0f, z, active & (fr.lod > -0.5f));
+            for (int l = 0; l < VEC; ++l)
+                if (LANE_I(active, l)) LANE_I(nearest, l) = f.scene.prims[LANE_I(pi, l)].tri;
+        }
+        take_lookup(fr, active, &lod, &ox, &oy, &oxr, &oyr, &oxb, &oyb);
+        blend_under_tx(fr, active, &ar, &ag, &ab, &tr, &tg, &tb);
+    }
+    t = select((tr + tg + tb) / 3.0f, tr, (tr == tg) & (tg == tb));   /* untinted: T itself, bit for bit */
+    for (int l = 0; l < VEC && px0 + l < width; ++l)
+        store_tx(tx_planes, npix, py * width + px0 + l, l, tr, tg, tb, lod, oxr, oyr, oxb, oyb, near_z);
+#else
     for (int i = 0; i < longest; ++i) {
         const intV active = ((intV)i < n) & (t >= TRANSMITTANCE_EPSILON);
         if (!ANY(active)) break;
@@ -126,6 +159,7 @@ kernel void abuffer_resolve(global const int* list_len, global const int* list_o
         }
         blend_under(fr, active, &ar, &ag, &ab, &t);
     }
+#endif
     for (int l = 0; l < VEC && px0 + l < width; ++l)
         store_layers(layers, npix, py * width + px0 + l, l, ar, ag, ab, t, ox, oy, nearest);
 }

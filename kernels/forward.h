@@ -12,8 +12,17 @@
  *     c = albedo·(ambient·occlusion + diffuse) + specular + emission (unlit: albedo; docs/materials.md);
  * with SURFACE_LAYERS, the lanes whose material has layers: layer_shading.h's shade_layered().
  * Blending, front to back per lane: acc += T·alpha·c, T *= 1 - alpha.
+ * With TRANSMISSION (a scene with transmissive materials; every change below is under #if TRANSMISSION,
+ * so the variant without it is today's code): the transmissive lanes' diffuse albedo (compose_gltf's
+ * diffuse term, or shade_layered's diffuse_weight) × (1 - t), their transmitted weight w_c, refracted
+ * lookup offsets per channel and blur level from transmission.h; blending per channel:
+ * acc_c += T_c·alpha·c_c, T_c *= (1 - alpha) + w_c (exit faces of volumes skipped), early stop on
+ * max T_c < TRANSMITTANCE_EPSILON; the first fragment front to back that is transmissive or has a
+ * legacy refraction strength sets the lookup (store_tx: the tx planes, docs/transmission.md); the punctual
+ * lights behind a transmissive lane seen through it (transmission_lights) add to its colour.
  *
- * Kernel arguments: FORWARD_PARAMS below, in that order (clrender/passes/forward.py).
+ * Kernel arguments: FORWARD_PARAMS below, in that order (clrender/passes/forward.py); TRANSMISSION adds
+ * `material_tx, tri_volume_scale` at its end.
  */
 #ifndef CLRENDER_FORWARD_H
 #define CLRENDER_FORWARD_H
@@ -44,6 +53,17 @@
 #define FORWARD_LAYER_PARAMS
 #define FORWARD_LAYER_INIT
 #endif
+#ifndef TRANSMISSION
+#define TRANSMISSION 0            /* 1: a scene with transmissive materials (transmission.h; built only for one) */
+#endif
+#if TRANSMISSION
+#include "transmission.h"
+#define FORWARD_TX_PARAMS , global const MaterialTx* material_tx, global const float* tri_volume_scale
+#define FORWARD_TX_INIT , material_tx, tri_volume_scale
+#else
+#define FORWARD_TX_PARAMS
+#define FORWARD_TX_INIT
+#endif
 
 #define FORWARD_PARAMS \
     SCENE_PARAMS(prims), global const float* camera, int width, int height, float ambient, \
@@ -52,7 +72,7 @@
     global const float* shadow_atlas, int atlas_stride, global const ShadowView* shadow_views, \
     float shadow_bias, float shadow_slope_bias, float shadow_normal_offset, \
     int has_sun, global const float* sun, int sun_cascades, int spot_view0, int spot_plane0, \
-    int has_env, int env_background, ENV_PARAMS FORWARD_LAYER_PARAMS
+    int has_env, int env_background, ENV_PARAMS FORWARD_LAYER_PARAMS FORWARD_TX_PARAMS
 
 typedef struct {
     SceneV scene;
@@ -71,17 +91,28 @@ typedef struct {
     int has_tangents;
     global const float* sheen_lut;
 #endif
+#if TRANSMISSION
+    global const MaterialTx* material_tx;
+    global const float* tri_volume_scale;
+#endif
 } Forward;
 
 /* A `Forward` from FORWARD_PARAMS. */
 #define FORWARD_INIT { SCENE_INIT(prims), camera, width, height, ambient, n_lights, \
                        tile_light_offsets, tile_light_counts, list_capacity, light_tiles_x, \
-                       LIGHT_ENV_INIT, has_env, ENV_INIT FORWARD_LAYER_INIT }
+                       LIGHT_ENV_INIT, has_env, ENV_INIT FORWARD_LAYER_INIT FORWARD_TX_INIT }
 
 typedef struct {
     floatV r, g, b;    /* albedo·(ambient + diffuse) + specular, linear HDR */
     floatV a;          /* alpha in [0, 1] */
-    floatV ox, oy;     /* refraction: displacement of the lookup behind, pixels (x right, y down) */
+    floatV ox, oy;     /* refraction: displacement of the lookup behind, pixels (x right, y down); G with TRANSMISSION */
+#if TRANSMISSION
+    floatV wr, wg, wb;             /* transmitted weight per channel (0: not transmissive) */
+    floatV oxr, oyr, oxb, oyb;     /* the R and B channels' lookup offsets (dispersion) */
+    floatV lod;                    /* the lookup this fragment sets: >= 0 transmissive (blur level), -2 the legacy
+                                      refraction strength (offset only), -1 none */
+    intV exit;                     /* exit face of a volume: skipped by the blending */
+#endif
 } FragmentsV;
 
 /* The lanes' fragments (prim pi, depth z) at pixels px0 + lane of row py; lanes outside
@@ -122,6 +153,39 @@ static FragmentsV shade_fragments(const Forward* f, intV pi, floatV z, intV acti
                       -dx * inv_d, -dy * inv_d, -dz * inv_d, &m, z, px, py,
                       0, 0, VEC, 0, &dr, &dg, &db, &sr, &sg, &sb, &tr, &tg, &tb);
     FragmentsV out;
+#if TRANSMISSION
+    /* transmission.h: what the transmissive lanes let through; their alpha is the coverage: alpha for
+     * alphaMode BLEND (MAT_TX_ALPHA), 0 or 1 at the cutoff for MASK, 1 for OPAQUE (glTF ignores alpha). */
+    intV txl = select((intV)-1, GATHER_M(intV, f->scene.materials, sf.mat, tx), gltf) >= 0;
+#if VEC == 1
+    txl = txl ? 1 : 0;
+#endif
+    floatV cov = clamp(sf.a, 0.0f, 1.0f);
+    TransmissionV tx;
+    tx.kd = 1.0f;
+    tx.wr = 0.0f; tx.wg = 0.0f; tx.wb = 0.0f;
+    tx.oxr = 0.0f; tx.oyr = 0.0f; tx.oxg = 0.0f; tx.oyg = 0.0f; tx.oxb = 0.0f; tx.oyb = 0.0f;
+    tx.lod = -1.0f;
+    tx.exit = 0;
+    tx.ur = 0.0f; tx.ug = 0.0f; tx.ub = 0.0f; tx.a2 = 1.0f; tx.ex = 0.0f; tx.ey = 0.0f; tx.ez = 0.0f;
+    if (ANY(txl)) {
+        intV masked = txl & ((sf.mat_flags & (int)MAT_MASK) != 0);
+#if VEC == 1
+        masked = masked ? 1 : 0;
+#endif
+        const floatV cutoff = GATHER_M(floatV, f->scene.materials, sf.mat, alpha_cutoff);
+        cov = select(cov, select((floatV)1.0f, (floatV)0.0f, sf.a < cutoff), masked);
+        intV opaque = txl & ((sf.mat_flags & (int)(MAT_MASK | MAT_TX_ALPHA)) == 0);
+#if VEC == 1
+        opaque = opaque ? 1 : 0;
+#endif
+        cov = select(cov, (floatV)1.0f, opaque);
+        const vec3V v = { -dx * inv_d, -dy * inv_d, -dz * inv_d };
+        tx = transmission_lanes(&f->scene, &bary, &sf, f->material_tx, f->tri_volume_scale,
+                                GATHER_M(intV, f->scene.materials, sf.mat, tx), txl, cov, v, f->camera, f->width,
+                                f->height, xn, (floatV)yn, z);
+    }
+#endif
     const floatV strength = GATHER_M(floatV, f->scene.materials, sf.mat, emissive_strength);
     const intV unlit = (sf.mat_flags & (int)MAT_UNLIT) != 0;
     const AmbientV amb = ambient_light(f->has_env, &f->envmaps, &m, (floatV)f->ambient, 1.0f, sf.n.x, sf.n.y, sf.n.z,
@@ -132,6 +196,9 @@ static FragmentsV shade_fragments(const Forward* f, intV pi, floatV z, intV acti
     if (m.any_gltf) {                  /* brdf.h: the glTF lanes from base colour and metallic */
         floatV ar = sf.r, ag = sf.g, ab = sf.b, f0r, f0g, f0b;
         gltf_albedo_f0(gltf, sf.spec_i, &ar, &ag, &ab, &f0r, &f0g, &f0b);
+#if TRANSMISSION   /* mix(diffuse, btdf, t): the diffuse albedo (compose_gltf's diffuse term alone) × (1 - t) */
+        ar = select(ar, ar * tx.kd, txl); ag = select(ag, ag * tx.kd, txl); ab = select(ab, ab * tx.kd, txl);
+#endif
         out.r = select(out.r, compose_gltf(ar, f0r, dr, sr, tr, amb.dr, amb.sr, amb.tr, sf.occlusion, sf.er * strength),
                        gltf);
         out.g = select(out.g, compose_gltf(ag, f0g, dg, sg, tg, amb.dg, amb.sg, amb.tg, sf.occlusion, sf.eg * strength),
@@ -150,8 +217,23 @@ static FragmentsV shade_fragments(const Forward* f, intV pi, floatV z, intV acti
         floatV lr, lg, lb;
         shade_layered(&f->scene, &bary, &sf, f->material_ext, ext, layered, f->has_tangents, f->sheen_lut, &f->env,
                       first, count, wx, wy, wz, z, v, px, py, f->has_env, &f->envmaps, f->ambient, 1.0f,
+#if TRANSMISSION
+                      select((floatV)1.0f, tx.kd, txl),     /* the diffuse weight 1 - t (mix with the btdf) */
+#else
+                      1.0f,
+#endif
                       MULTISCATTER, &lr, &lg, &lb);
         out.r = select(out.r, lr, layered); out.g = select(out.g, lg, layered); out.b = select(out.b, lb, layered);
+    }
+#endif
+#if TRANSMISSION   /* the lights behind the transmissive lanes, seen through them (transmission.h) */
+    intV lit_through = txl & !tx.exit;
+#if VEC == 1
+    lit_through = lit_through ? 1 : 0;
+#endif
+    if (ANY(lit_through)) {
+        const vec3V v = { -dx * inv_d, -dy * inv_d, -dz * inv_d };
+        transmission_lights(&f->env, first, count, lit_through, &tx, wx, wy, wz, sf.n, v, &out.r, &out.g, &out.b);
     }
 #endif
     out.a = clamp(sf.a, 0.0f, 1.0f);
@@ -164,8 +246,68 @@ static FragmentsV shade_fragments(const Forward* f, intV pi, floatV z, intV acti
         out.ox = (sf.n.x * R.x + sf.n.y * R.y + sf.n.z * R.z) * k;
         out.oy = -(sf.n.x * U.x + sf.n.y * U.y + sf.n.z * U.z) * k;
     }
+#if TRANSMISSION   /* the lookup: transmissive lanes their refraction, others their legacy strength's offset */
+    intV legacy = active & (refraction > 0.0f) & !txl;
+#if VEC == 1
+    legacy = legacy ? 1 : 0;
+#endif
+    out.a = cov;
+    out.wr = tx.wr; out.wg = tx.wg; out.wb = tx.wb;
+    out.ox = select(out.ox, tx.oxg, txl); out.oy = select(out.oy, tx.oyg, txl);
+    out.oxr = select(out.ox, tx.oxr, txl); out.oyr = select(out.oy, tx.oyr, txl);
+    out.oxb = select(out.ox, tx.oxb, txl); out.oyb = select(out.oy, tx.oyb, txl);
+    out.lod = select(select((floatV)-1.0f, (floatV)-2.0f, legacy), tx.lod, txl);
+    out.exit = tx.exit;
+#endif
     return out;
 }
+
+#if TRANSMISSION
+/* Front-to-back blending per channel of the active lanes (transmission.h): acc_c += T_c·alpha·c_c,
+ * T_c *= (1 - alpha) + w_c; exit faces of volumes are skipped. */
+static inline void blend_under_tx(FragmentsV fr, intV active, floatV* ar, floatV* ag, floatV* ab, floatV* tr,
+                                  floatV* tg, floatV* tb)
+{
+    const intV on = active & !fr.exit;
+    *ar = select(*ar, *ar + (*tr * fr.a) * fr.r, on);
+    *ag = select(*ag, *ag + (*tg * fr.a) * fr.g, on);
+    *ab = select(*ab, *ab + (*tb * fr.a) * fr.b, on);
+    *tr = select(*tr, *tr * ((1.0f - fr.a) + fr.wr), on);
+    *tg = select(*tg, *tg * ((1.0f - fr.a) + fr.wg), on);
+    *tb = select(*tb, *tb * ((1.0f - fr.a) + fr.wb), on);
+}
+
+/* The lookup state of the lanes `active`: the first fragment front to back that sets one (fr.lod != -1)
+ * sets it, later ones keep it (state lod < -0.5: not set yet). */
+static inline void take_lookup(FragmentsV fr, intV active, floatV* lod, floatV* ox, floatV* oy, floatV* oxr,
+                               floatV* oyr, floatV* oxb, floatV* oyb)
+{
+    intV sets = active & (*lod < -0.5f) & ((fr.lod < -1.5f) | (fr.lod > -0.5f));
+#if VEC == 1
+    sets = sets ? 1 : 0;
+#endif
+    *lod = select(*lod, fr.lod, sets);
+    *ox = select(*ox, fr.ox, sets); *oy = select(*oy, fr.oy, sets);
+    *oxr = select(*oxr, fr.oxr, sets); *oyr = select(*oyr, fr.oyr, sets);
+    *oxb = select(*oxb, fr.oxb, sets); *oyb = select(*oyb, fr.oyb, sets);
+}
+
+/* Stores lane l's transmission planes at pixel q (TX_PLANES = 9 planes of npix, clrender/passes/forward.py):
+ * T_r, T_g, T_b, lod, offset R (x, y), offset B (x, y), the nearest fragment's depth (-1: not transmissive). */
+static inline void store_tx(global float* tx_planes, int npix, int q, int l, floatV tr, floatV tg, floatV tb,
+                            floatV lod, floatV oxr, floatV oyr, floatV oxb, floatV oyb, floatV near_z)
+{
+    tx_planes[q] = LANE_F(tr, l);
+    tx_planes[npix + q] = LANE_F(tg, l);
+    tx_planes[2 * npix + q] = LANE_F(tb, l);
+    tx_planes[3 * npix + q] = LANE_F(lod, l);
+    tx_planes[4 * npix + q] = LANE_F(oxr, l);
+    tx_planes[5 * npix + q] = LANE_F(oyr, l);
+    tx_planes[6 * npix + q] = LANE_F(oxb, l);
+    tx_planes[7 * npix + q] = LANE_F(oyb, l);
+    tx_planes[8 * npix + q] = LANE_F(near_z, l);
+}
+#endif
 
 /* Front-to-back "under" blending of the active lanes: acc += T·alpha·c, T *= 1 - alpha. */
 static inline void blend_under(FragmentsV fr, intV active, floatV* ar, floatV* ag, floatV* ab, floatV* t)

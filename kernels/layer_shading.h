@@ -97,9 +97,10 @@ static void geometric_frame(const SceneV* sc, const BaryV* b, const SurfaceV* sf
     bt->x = bb.x * hand; bt->y = bb.y * hand; bt->z = bb.z * hand;
 }
 
-/* The layer parameters of the lanes `on` (ext: their MaterialExt index) and layered_prepare(). */
+/* The layer parameters of the lanes `on` (ext: their MaterialExt index) and layered_prepare(); dw: the
+ * diffuse BSDF's weight (1 - transmission). */
 static LayeredV layer_inputs(const SceneV* sc, const BaryV* b, global const MaterialExt* x, intV ext, intV on,
-                             const SurfaceV* sf, int has_tangents, vec3V v, global const float* sheen_lut)
+                             const SurfaceV* sf, int has_tangents, vec3V v, floatV dw, global const float* sheen_lut)
 {
     vec3V ng, t, bt;
     geometric_frame(sc, b, sf, has_tangents, &ng, &t, &bt);
@@ -143,54 +144,59 @@ static LayeredV layer_inputs(const SceneV* sc, const BaryV* b, global const Mate
     const floatV ax = rc * dx - rs * dy, ay = rs * dx + rc * dy;   /* counter-clockwise in tangent space */
     const vec3V at = { t.x * ax + bt.x * ay, t.y * ax + bt.y * ay, t.z * ax + bt.z * ay };
     const floatV ior = XF(ior), irid_ior = XF(iridescence_ior);
+    floatV dt = XF(diffuse_transmission);
+    dt *= sample_layer_slot(sc, b, x, ext, XSLOT_DIFFUSE_TRANSMISSION, on, &hit).a;
+    floatV dtr = XF(diffuse_transmission_color[0]), dtg = XF(diffuse_transmission_color[1]);
+    floatV dtb = XF(diffuse_transmission_color[2]);
+    s = sample_layer_slot(sc, b, x, ext, XSLOT_DIFFUSE_TRANSMISSION_COLOR, on, &hit);
+    dtr *= s.r; dtg *= s.g; dtb *= s.b;
 #undef XF
     return layered_prepare(on, sf->n, ng, ncc, at, v, sf->r, sf->g, sf->b, sf->spec_i, sf->spec_p, ior, sw,
                            scr, scg, scb, clamp(cc, 0.0f, 1.0f), clamp(ccr, 0.0f, 1.0f), shr, shg, shb,
                            clamp(sh_rough, 0.0f, 1.0f), clamp(irid, 0.0f, 1.0f), irid_ior, thickness, aniso,
-                           sheen_lut);
+                           clamp(dt, 0.0f, 1.0f), dtr, dtg, dtb, dw, sheen_lut);
 }
 
 /* Σ over the tile's lights and the sun of layered_light(), with lighting.h's falloff, spot cone
- * and shadow visibility. */
+ * and shadow visibility; for the lanes a light reaches from behind through the surface (dt > 0,
+ * N·L < 0) the shadow is looked up a second time from that side (the flipped normal: the normal
+ * offset and slope bias of the side the light enters). */
 static void layered_lights(const LightEnv* env, int first, int count, const LayeredV* s, intV on,
                            floatV px, floatV py_, floatV pz, floatV depth, intV pix_x, int pix_y,
                            global const float* sheen_lut, floatV* r, floatV* g, floatV* b)
 {
     const floatV nx = s->n.x, ny = s->n.y, nz = s->n.z;
+    const intV through = on & (s->dt > 0.0f);       /* lanes that let light through */
     for (int k = 0; k < count; ++k) {
-#if BRUTE_FORCE
-        const Light lt = env->lights[k];
-#else
-        const Light lt = env->lights[env->tile_lights[first + k]];
-#endif
-        floatV lx, ly, lz;
-        const floatV d2 = light_vector(&lt, px, py_, pz, &lx, &ly, &lz);
-        const float r2 = lt.radius * lt.radius;
-        const intV near_enough = on & (d2 < r2);
+        floatV lx, ly, lz, atten;
+        intV near_enough;
+        const Light lt = light_at(env, first, k, on, px, py_, pz, &near_enough, &lx, &ly, &lz, &atten);
         if (!ANY(near_enough)) continue;
-        floatV atten = light_falloff(&lt, d2, r2, near_enough);
-        const floatV inv_l = RSQRT(fmax(d2, 1e-30f));
-        lx *= inv_l; ly *= inv_l; lz *= inv_l;
-        if (lt.type == LIGHT_SPOT) atten *= spot_cone(&lt, spot_cos(&lt, lx, ly, lz));
+        floatV atten_b = s->any_dt ? select((floatV)0.0f, atten, through) : (floatV)0.0f;   /* from behind */
 #if SHADOWS
         if (lt.shadow >= 0) {
             const intV lit = near_enough & (atten > 0.0f);
+            const floatV ndotl = nx * lx + ny * ly + nz * lz;
+            global const ShadowView* vw = env->views + env->spot_view0 + lt.shadow;
+            if (s->any_dt && ANY(lit & through & (ndotl < 0.0f)))
+                atten_b *= shadow_visibility(&env->sp, vw, px, py_, pz, -nx, -ny, -nz, -ndotl, pix_x, pix_y);
             if (ANY(lit))
-                atten *= shadow_visibility(&env->sp, env->views + env->spot_view0 + lt.shadow, px, py_, pz,
-                                           nx, ny, nz, nx * lx + ny * ly + nz * lz, pix_x, pix_y);
+                atten *= shadow_visibility(&env->sp, vw, px, py_, pz, nx, ny, nz, ndotl, pix_x, pix_y);
         }
 #endif
-        if (!ANY(atten > 0.0f)) continue;
+        if (!ANY((atten > 0.0f) | (atten_b > 0.0f))) continue;
         layered_light(s, sheen_lut, lx, ly, lz, atten * lt.color[0], atten * lt.color[1], atten * lt.color[2],
-                      r, g, b);
+                      atten_b * lt.color[0], atten_b * lt.color[1], atten_b * lt.color[2], r, g, b);
     }
     if (env->has_sun) {
         global const float* sun = env->sun;
         const floatV lx = -sun[0], ly = -sun[1], lz = -sun[2];
-        floatV vis = 1.0f;
+        floatV vis = 1.0f, vis_b = 1.0f;
 #if SHADOWS
         if (env->sun_cascades > 0) {
             const floatV ndotl = nx * lx + ny * ly + nz * lz;
+            const intV back = through & (ndotl < 0.0f);
+            const int any_back = s->any_dt && ANY(back);
             intV cascade = 0;
             for (int c = 0; c + 1 < env->sun_cascades; ++c)
                 cascade += select((intV)0, (intV)1, depth > env->views[c].split);
@@ -199,23 +205,28 @@ static void layered_lights(const LightEnv* env, int first, int count, const Laye
                 if (ANY(mine))
                     vis = select(vis, shadow_visibility(&env->sp, env->views + c, px, py_, pz, nx, ny, nz, ndotl,
                                                         pix_x, pix_y), mine);
+                if (any_back && ANY(mine & back))
+                    vis_b = select(vis_b, shadow_visibility(&env->sp, env->views + c, px, py_, pz, -nx, -ny, -nz,
+                                                            -ndotl, pix_x, pix_y), mine & back);
             }
         }
 #endif
-        layered_light(s, sheen_lut, lx, ly, lz, vis * sun[3], vis * sun[4], vis * sun[5], r, g, b);
+        layered_light(s, sheen_lut, lx, ly, lz, vis * sun[3], vis * sun[4], vis * sun[5], vis_b * sun[3],
+                      vis_b * sun[4], vis_b * sun[5], r, g, b);
     }
 }
 
 /* The layered colour of the lanes `on` (ext: their MaterialExt index): Σ lights (the tile's
  * `count` from `first`, the sun) + ambient·occlusion·ao + emission·(1 − cc·Fc). P on the view ray
- * at view depth `depth`, v towards the eye. */
+ * at view depth `depth`, v towards the eye. diffuse_weight: what weights the diffuse BSDF
+ * (reflected and transmitted), 1 − transmission for KHR_materials_transmission (forward.h), else 1. */
 static void shade_layered(const SceneV* sc, const BaryV* bary, const SurfaceV* sf, global const MaterialExt* x,
                           intV ext, intV on, int has_tangents, global const float* sheen_lut,
                           const LightEnv* env, int first, int count, floatV px, floatV py_, floatV pz, floatV depth,
                           vec3V v, intV pix_x, int pix_y, int has_env, const EnvMaps* envmaps, float ambient,
-                          floatV ao, int multiscatter, floatV* cr, floatV* cg, floatV* cb)
+                          floatV ao, floatV diffuse_weight, int multiscatter, floatV* cr, floatV* cg, floatV* cb)
 {
-    const LayeredV s = layer_inputs(sc, bary, x, max(ext, 0), on, sf, has_tangents, v, sheen_lut);
+    const LayeredV s = layer_inputs(sc, bary, x, max(ext, 0), on, sf, has_tangents, v, diffuse_weight, sheen_lut);
     floatV r = 0.0f, g = 0.0f, b = 0.0f;
     layered_lights(env, first, count, &s, on, px, py_, pz, depth, pix_x, pix_y, sheen_lut, &r, &g, &b);
     floatV ar = 0.0f, ag = 0.0f, ab = 0.0f;        /* layered_ambient adds */

@@ -1,6 +1,6 @@
-/* layered_brdf.h: the layered surface model of issue 37 (glTF KHR_materials_ior, _specular, _clearcoat,
- * _sheen, _iridescence, _anisotropy) at VEC lanes (vec.h), for kernels/layers.cl, which re-shades the
- * pixels whose material has layers. The model (the extension READMEs in KhronosGroup/glTF
+/* layered_brdf.h: the layered surface model of issues 37 and 38 (glTF KHR_materials_ior, _specular, _clearcoat,
+ * _sheen, _iridescence, _anisotropy, _diffuse_transmission) at VEC lanes (vec.h), for layer_shading.h, which
+ * re-shades the pixels (surface_layers.cl) and transparent fragments (forward.h) whose material has layers. The model (the extension READMEs in KhronosGroup/glTF
  * extensions/2.0/Khronos/, and where a README leaves the evaluation open, the Khronos glTF Sample
  * Renderer's shaders: brdf.glsl, ibl.glsl, iridescence.glsl), per lane:
  *   alpha = max(r, MIN_ROUGHNESS)^2, NV = max(N.V, 1e-4), f0_d = min(((ior-1)/(ior+1))^2 * sc, 1), F90_d = sw;
@@ -15,6 +15,12 @@
  *   sheen: col = I NL shc D_charlie V_sheen + col min(1 - max3(shc) E(NV), 1 - max3(shc) E(NL))
  *   (Estevez & Kulla 2017's Charlie D and the Sample Renderer's lambdaSheen fit for V);
  *   clearcoat: col = mix(col, I NccL D_GGX V_GGX (at Ncc, alpha_cc), cc Fc).
+ * Diffuse transmission (dt, colour dtc; the diffuse BSDF's weight dw = 1 - transmission, 1 without it): the README's
+ *   base mix(diffuse_brdf(c), diffuse_btdf(dtc), dt) inside the Fresnel mix, so every diffuse albedo c above is
+ *   c dw (1 - dt) (exactly c for dt = 0, dw = 1), and a light behind the surface (N.L < 0) adds
+ *   I NLb dtc dw dt / pi (NLb = -N.L) through the same weights as the diffuse term (1 - F_d, the iridescence mix,
+ *   1 - m, the sheen scaling with E(NLb), 1 - cc Fc) with x = V.H' at the mirrored light, H' = normalize(L - 2 (N.L)
+ *   N + V) (the Sample Renderer's l_mirror); its shadow is looked up with the flipped normal (layer_shading.h).
  * Image-based light (environment.h: Lirr = E/pi from the SH, pref = the GGX-prefiltered map, (A, B) the DFG
  * table at (NV, r)): FssEss(F0, w) = w (kS A + B), kS = F0 + (max(1 - r, F0) - F0)(1 - NV)^5 (Fdez-Aguera, the
  * Sample Renderer's getIBLGGXFresnel; with multiscatter + Ems FssEss Favg / (1 - Favg Ems), Ems = 1 - A - B,
@@ -23,7 +29,9 @@
  * iridescence mixes, col = mix(f_diel, f_metal, m); sheen: col = pref(R, shr) shc E(NV) + col (1 - max3(shc)
  * E(NV)) (the Sample Renderer samples a Charlie-prefiltered map: under a uniform environment the same);
  * clearcoat: col = mix(col, pref(Rcc, ccr), cc Fc). Without an environment the constant ambient a:
- * a c (1 - m)(1 - mix(sw f0_d, c, m))(1 - max3(shc) E(NV))(1 - cc Fc). Both times occlusion and ao.
+ * a c (1 - m)(1 - mix(sw f0_d, c, m))(1 - max3(shc) E(NV))(1 - cc Fc). Both times occlusion and ao. With diffuse
+ * transmission Lirr c becomes dw (Lirr(N) c (1 - dt) + Lirr(-N) dtc dt), and the constant ambient's c (in front
+ * of (1 - m)) dw (c (1 - dt) + dtc dt).
  * Emission is scaled by 1 - cc Fc (the clearcoat README).
  * Iridescence: the README's thin-film Fresnel (Belcour & Barla 2017, outside IOR 1, cosTheta1 = NV) with the
  * Sample Renderer's details the README leaves out: film IOR mix(1, irid_ior, smoothstep(0, 0.03, d)), base F0
@@ -39,7 +47,8 @@
  * visibilities, the anisotropic alphas, lambdaSheen's fit constants and lambda(NV), D_charlie's constants) is
  * made once in layered_prepare; the per-light sheen uses layered_math.h's inline pow/exp (within ~1e-7 of the
  * library's, see there) and evaluates only the lambdaSheen branch in use; a light behind every lane's surface
- * and coat is skipped; the ambient's base and sheen lookups share R's (u, v).
+ * and coat is skipped unless a lane lets it through (dt > 0); the transmitted term and the irradiance at -N are
+ * made only where a lane has dt > 0; the ambient's base and sheen lookups share R's (u, v).
  */
 #ifndef CLRENDER_LAYERED_BRDF_H
 #define CLRENDER_LAYERED_BRDF_H
@@ -47,12 +56,12 @@
 #include "brdf.h"              /* MIN_ROUGHNESS, INV_PI */
 #include "surface_types.h"     /* vec3V, dot3V */
 #include "environment.h"       /* EnvMaps, env_irradianceV, env_specularV, env_dfgV, ENV_INLINE */
+#include "layered_film.h"      /* the thin film (LbFilm, lb_irid_film, lb_irid_eval), lb_pow5 .. lb_max3, LB_PI */
 #pragma OPENCL FP_CONTRACT OFF
 
 #ifndef SHEEN_LUT_SIZE
 #define SHEEN_LUT_SIZE 32
 #endif
-#define LB_PI 3.14159265358979f
 #define LB_CC_F0 0.04f              /* clearcoat IOR 1.5 */
 #define LB_MIN_CC_ROUGHNESS 0.01f
 #define LB_MIN_NV 1e-4f
@@ -69,7 +78,11 @@ typedef struct {
     floatV irid;                     /* iridescence factor (0 where thickness is 0) */
     floatV fidr, fidg, fidb, fimr, fimg, fimb;  /* thin-film Fresnel at NV: dielectric, metal */
     floatV aniso;                    /* anisotropy strength */
+    floatV dt, dw;                   /* diffuse transmission [0, 1]; the diffuse BSDF's weight (1 - transmission) */
+    floatV kfr, kfg, kfb;            /* the reflected diffuse albedo c dw (1 - dt): c itself when dt = 0, dw = 1 */
+    floatV kbr, kbg, kbb;            /* the transmitted diffuse albedo dtc dw dt */
     int any_cc, any_sheen, any_irid, any_aniso; /* ANY over `on` of each layer: skip the math of absent layers */
+    int any_dt;                      /* ANY over `on` of dt > 0 */
     int all_aniso;                   /* every `on` lane anisotropic: the isotropic GGX is not needed */
     /* Per-pixel parts of the per-light terms (the same arithmetic, hoisted out of the light loop): */
     floatV vis_v;                    /* sqrt(NV^2 (1 - alpha^2) + alpha^2): the view half of V_GGX */
@@ -80,10 +93,7 @@ typedef struct {
 } LayeredV;
 
 /* ---- small helpers ---------------------------------------------------------------------------------- */
-static inline ENV_INLINE floatV lb_pow5(floatV x) { const floatV x2 = x * x; return x2 * x2 * x; }
-static inline ENV_INLINE floatV lb_clamp01(floatV x) { return fmin(fmax(x, 0.0f), 1.0f); }
-static inline ENV_INLINE floatV lb_mix(floatV a, floatV b, floatV t) { return a * (1.0f - t) + b * t; }
-static inline ENV_INLINE floatV lb_max3(floatV a, floatV b, floatV c) { return fmax(fmax(a, b), c); }
+/* (lb_pow5, lb_clamp01, lb_mix, lb_max3 and LB_PI: layered_film.h) */
 static inline ENV_INLINE vec3V lb_cross(vec3V a, vec3V b)
 {
     vec3V r = { a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x };
@@ -173,96 +183,13 @@ static inline ENV_INLINE floatV sheen_albedoV(global const float* lut, floatV mu
     return a + (b - a) * ay;
 }
 
-/* ---- iridescence (KHR_materials_iridescence README; see the header comment) ------------------------------ */
-/* R23 of the film-base interface (base IOR from F0, Schlick at cosTheta2: w2 = (1 - cosTheta2)^5) and whether
- * its phase shift phi23 is pi. */
-static inline ENV_INLINE floatV lb_irid_r23(floatV f0, floatV eta2, floatV w2, intV* phi23_pi)
-{
-    const floatV s = sqrt(fmin(fmax(f0, 0.0f), 0.9999f));
-    const floatV base_ior = (1.0f + s) / (1.0f - s);
-    const floatV q = (base_ior - eta2) / (base_ior + eta2);
-    const floatV r1 = q * q;
-    *phi23_pi = base_ior < eta2;
-    return r1 + (1.0f - r1) * w2;
-}
-
-/* What a film shares between the two bases: R12, T121 (first interface), eta2, w2, whether phi21 is pi, and
- * the sensitivity terms (cosine times Gaussian, m = 1, 2) of X (two), Y and Z without their phase shifts. */
-typedef struct { floatV r12, t121, eta2, w2; intV phi21_pi; floatV cx[2], cx2[2], cy[2], cz[2]; } LbFilm;
-
-/* Fi for one base F0 (per channel), clamped at 0. */
-static inline void lb_irid_eval(const LbFilm* f, floatV f0r, floatV f0g, floatV f0b,
-                                floatV* out_r, floatV* out_g, floatV* out_b)
-{
-    intV pr, pg, pb;
-    const floatV r23[3] = { lb_irid_r23(f0r, f->eta2, f->w2, &pr), lb_irid_r23(f0g, f->eta2, f->w2, &pg),
-                            lb_irid_r23(f0b, f->eta2, f->w2, &pb) };
-    /* phi = phi21 + phi23 per channel: an odd multiple of pi where exactly one of them is pi */
-    const intV odd[3] = { (f->phi21_pi != 0) ^ (pr != 0), (f->phi21_pi != 0) ^ (pg != 0), (f->phi21_pi != 0) ^ (pb != 0) };
-    floatV I[3], Cm[3], rr[3];
-    for (int ch = 0; ch < 3; ++ch) {
-        const floatV R123 = fmin(fmax(f->r12 * r23[ch], 1e-5f), 0.9999f);
-        rr[ch] = sqrt(R123);
-        const floatV Rs = f->t121 * f->t121 * r23[ch] / (1.0f - R123);
-        I[ch] = f->r12 + Rs;
-        Cm[ch] = Rs - f->t121;
-    }
-    for (int m = 0; m < 2; ++m) {
-        /* cos(pos phase + (m + 1) phi_ch): -cos(pos phase) for m + 1 = 1 and phi_ch an odd multiple of pi */
-        const floatV sr = m == 0 ? select((floatV)1.0f, (floatV)-1.0f, odd[0]) : (floatV)1.0f;
-        const floatV sg = m == 0 ? select((floatV)1.0f, (floatV)-1.0f, odd[1]) : (floatV)1.0f;
-        const floatV sb = m == 0 ? select((floatV)1.0f, (floatV)-1.0f, odd[2]) : (floatV)1.0f;
-        const floatV x = sr * (f->cx[m] + f->cx2[m]), y = sg * f->cy[m], z = sb * f->cz[m];
-        /* XYZ -> linear Rec.709 (the README's XYZ_TO_REC709), times 2 */
-        const floatV S[3] = { 2.0f * (3.2404542f * x - 1.5371385f * y - 0.4985314f * z),
-                              2.0f * (-0.9692660f * x + 1.8760108f * y + 0.0415560f * z),
-                              2.0f * (0.0556434f * x - 0.2040259f * y + 1.0572252f * z) };
-        for (int ch = 0; ch < 3; ++ch) {
-            Cm[ch] *= rr[ch];
-            I[ch] += Cm[ch] * S[ch];
-        }
-    }
-    *out_r = fmax(I[0], 0.0f); *out_g = fmax(I[1], 0.0f); *out_b = fmax(I[2], 0.0f);
-}
-
-/* The terms of the film (IOR eta2_in, thickness d nm) at cosTheta1 = cos1 shared by both bases. */
-static inline LbFilm lb_irid_film(floatV cos1, floatV eta2_in, floatV d)
-{
-    LbFilm f;
-    const floatV t = lb_clamp01(d * (1.0f / 0.03f));
-    f.eta2 = lb_mix((floatV)1.0f, eta2_in, t * t * (3.0f - 2.0f * t));            /* smoothstep(0, 0.03, d) */
-    const floatV k = 1.0f / f.eta2;
-    const floatV cos2 = sqrt(fmax(1.0f - k * k * (1.0f - cos1 * cos1), 0.0f));    /* eta2 >= 1: no TIR */
-    const floatV q = (f.eta2 - 1.0f) / (f.eta2 + 1.0f), r0 = q * q;
-    f.r12 = r0 + (1.0f - r0) * lb_pow5(1.0f - cos1);
-    f.t121 = 1.0f - f.r12;
-    f.w2 = lb_pow5(1.0f - cos2);
-    f.phi21_pi = f.eta2 >= 1.0f;                                                   /* phi12 = 0 unless eta2 < 1 */
-    const floatV opd = 2.0f * f.eta2 * d * cos2;
-    /* m = 1 at the phase p, m = 2 at 2p from the same cosines and Gaussians: cos(2x) = 2 cos(x)^2 - 1 and
-     * exp(-k (2p)^2) = exp(-k p^2)^4 (half the library calls; differences of a few ulp) */
-    const floatV phase = (2.0f * LB_PI * 1.0e-9f) * opd;
-    const floatV p2 = phase * phase;
-    /* val sqrt(2 pi var) / 1.0685e-7 per term (the README's constants) */
-#define LB_SENS(out, val, pos, var) { \
-        const floatV c1 = cos((pos) * phase), g1 = exp(-(var) * p2), g2 = g1 * g1; \
-        out[0] = (val) * c1 * g1; \
-        out[1] = (val) * (2.0f * c1 * c1 - 1.0f) * (g2 * g2); }
-    LB_SENS(f.cx, 0.846590002f, 1.6810e+06f, 4.3278e+09f)
-    LB_SENS(f.cx2, 0.153868307f, 2.2399e+06f, 4.5282e+09f)
-    LB_SENS(f.cy, 1.000221894f, 1.7953e+06f, 9.3046e+09f)
-    LB_SENS(f.cz, 1.001122486f, 2.2084e+06f, 6.6121e+09f)
-#undef LB_SENS
-    return f;
-}
-
 /* ---- preparation ------------------------------------------------------------------------------------- */
 static inline LayeredV layered_prepare(intV on, vec3V n, vec3V ng, vec3V ncc, vec3V at, vec3V v,
                          floatV cr, floatV cg, floatV cb, floatV metallic, floatV rough,
                          floatV ior, floatV sw, floatV scr, floatV scg, floatV scb,
                          floatV cc, floatV cc_rough, floatV shr, floatV shg, floatV shb, floatV sh_rough,
                          floatV irid, floatV irid_ior, floatV irid_thickness_nm, floatV aniso,
-                         global const float* sheen_lut)
+                         floatV dt, floatV dtr, floatV dtg, floatV dtb, floatV dw, global const float* sheen_lut)
 {
     LayeredV s;
     s.on = on != 0;                                      /* -1/0 lanes (1/0 for VEC 1), whatever was passed */
@@ -296,6 +223,13 @@ static inline LayeredV layered_prepare(intV on, vec3V n, vec3V ng, vec3V ncc, ve
     s.shr = shr; s.shg = shg; s.shb = shb; s.sh_rough = sh_rough;
     s.irid = select((floatV)0.0f, irid, irid_thickness_nm > 0.0f);
     s.aniso = aniso;
+    s.dt = dt; s.dw = dw;
+    {   /* dw (1 - dt) is exactly 1 for dt = 0, dw = 1: c * 1 = c, the albedo of a material without either */
+        const floatV kf = dw * (1.0f - dt), kb = dw * dt;
+        s.kfr = cr * kf; s.kfg = cg * kf; s.kfb = cb * kf;
+        s.kbr = dtr * kb; s.kbg = dtg * kb; s.kbb = dtb * kb;
+    }
+    s.any_dt = ANY(s.on & (dt > 0.0f)) ? 1 : 0;
     s.any_cc = ANY(s.on & (cc > 0.0f)) ? 1 : 0;
     s.any_sheen = ANY(s.on & (lb_max3(shr, shg, shb) > 0.0f)) ? 1 : 0;
     s.any_irid = ANY(s.on & (s.irid > 0.0f)) ? 1 : 0;
@@ -362,15 +296,51 @@ static inline ENV_INLINE floatV lb_base_mix(const LayeredV* s, floatV dif, float
     return lb_mix(diel, metal, s->metallic);
 }
 
-/* Adds one punctual light (L unit towards it, (ir, ig, ib) its intensity at the point) to *r, *g, *b on the lanes
- * `on`; lanes facing away from both the base and the coat add 0. */
+/* The light through the surface (diffuse transmission) from behind it: I NLb dtc dw dt / pi with NLb = -N.L, weighted as
+ * the diffuse term at the mirrored light Lm = L - 2 (N.L) N (H' = normalize(Lm + V), the sheen's E at NLb), added on
+ * the lanes `back`. */
+static inline void lb_light_back(const LayeredV* s, global const float* sheen_lut, vec3V L, floatV nlb, intV back,
+                                 floatV ir, floatV ig, floatV ib, floatV* r, floatV* g, floatV* b)
+{
+    const floatV k2 = 2.0f * nlb;
+    const vec3V H = lb_normalize((vec3V){ L.x + k2 * s->n.x + s->v.x, L.y + k2 * s->n.y + s->v.y,
+                                          L.z + k2 * s->n.z + s->v.z });
+    const floatV w = lb_pow5(1.0f - lb_clamp01(dot3V(s->v, H))), k = nlb * INV_PI;
+    const floatV fid_max = lb_max3(s->fidr, s->fidg, s->fidb);
+    floatV scale = 1.0f - s->metallic;      /* mix(diel, metal, m) with no specular: the metal adds nothing */
+    if (s->any_sheen)
+        scale *= fmax(fmin(1.0f - s->sh_max * s->sh_ev, 1.0f - s->sh_max * sheen_albedoV(sheen_lut, nlb, s->sh_rough)),
+                      0.0f);
+    if (s->any_cc) scale *= 1.0f - s->cc * s->fc;   /* mix(col, coat, cc Fc) with no coat lobe */
+#define LB_BACK(kb, f0, fid, I) \
+    { \
+        const floatV dif = (I) * (k * s->kb); \
+        floatV diel = dif * (1.0f - (s->sw * s->f0 + (s->sw - s->sw * s->f0) * w)); \
+        if (s->any_irid) diel = lb_mix(diel, (1.0f - fid_max) * dif, s->irid); \
+        out = diel * scale; \
+    }
+    floatV out;
+    LB_BACK(kbr, f0r, fidr, ir) *r += select((floatV)0.0f, out, back);
+    LB_BACK(kbg, f0g, fidg, ig) *g += select((floatV)0.0f, out, back);
+    LB_BACK(kbb, f0b, fidb, ib) *b += select((floatV)0.0f, out, back);
+#undef LB_BACK
+}
+
+/* Adds one punctual light (L unit towards it, (ir, ig, ib) its intensity at the point, (bir, big, bib) the same with
+ * the shadow looked up from the back side) to *r, *g, *b on the lanes `on`; lanes facing away from both the base and
+ * the coat add 0, or only the light they let through (dt > 0). */
 static inline ENV_INLINE void layered_light(const LayeredV* s, global const float* sheen_lut, floatV lx, floatV ly, floatV lz,
-                   floatV ir, floatV ig, floatV ib, floatV* r, floatV* g, floatV* b)
+                   floatV ir, floatV ig, floatV ib, floatV bir, floatV big, floatV bib, floatV* r, floatV* g, floatV* b)
 {
     const vec3V L = { lx, ly, lz };
     const floatV nl = lb_clamp01(dot3V(s->n, L));
     const floatV nccl = s->any_cc ? lb_clamp01(dot3V(s->ncc, L)) : (floatV)0.0f;
     const intV add = s->on & ((nl > 0.0f) | (nccl > 0.0f));
+    if (s->any_dt) {
+        const floatV nlb = lb_clamp01(-dot3V(s->n, L));
+        const intV back = s->on & (s->dt > 0.0f) & (nlb > 0.0f);
+        if (ANY(back)) lb_light_back(s, sheen_lut, L, nlb, back, bir, big, bib, r, g, b);
+    }
     if (!ANY(add)) return;                  /* behind every lane's surface and coat: those lanes add 0 */
     const vec3V H = lb_normalize((vec3V){ lx + s->v.x, ly + s->v.y, lz + s->v.z });
     const floatV nh = lb_clamp01(dot3V(s->n, H)), vh = lb_clamp01(dot3V(s->v, H));
@@ -396,12 +366,12 @@ static inline ENV_INLINE void layered_light(const LayeredV* s, global const floa
     const floatV w = lb_pow5(1.0f - vh);
     const floatV spec = nl * dv, k = nl * INV_PI;
     const floatV fid_max = lb_max3(s->fidr, s->fidg, s->fidb);
-#define LB_CHANNEL(c, f0, fid, fim, I) \
-    (I) * lb_base_mix(s, k * s->c, spec, s->sw * s->f0 + (s->sw - s->sw * s->f0) * w, s->c + (1.0f - s->c) * w, \
+#define LB_CHANNEL(c, kf, f0, fid, fim, I) \
+    (I) * lb_base_mix(s, k * s->kf, spec, s->sw * s->f0 + (s->sw - s->sw * s->f0) * w, s->c + (1.0f - s->c) * w, \
                       s->fid, s->fim, fid_max)
-    floatV cr = LB_CHANNEL(cr, f0r, fidr, fimr, ir);
-    floatV cg = LB_CHANNEL(cg, f0g, fidg, fimg, ig);
-    floatV cb = LB_CHANNEL(cb, f0b, fidb, fimb, ib);
+    floatV cr = LB_CHANNEL(cr, kfr, f0r, fidr, fimr, ir);
+    floatV cg = LB_CHANNEL(cg, kfg, f0g, fidg, fimg, ig);
+    floatV cb = LB_CHANNEL(cb, kfb, f0b, fidb, fimb, ib);
 #undef LB_CHANNEL
     if (s->any_sheen) {
         const floatV sm = s->sh_max;
@@ -487,12 +457,21 @@ static inline void layered_ambient(const LayeredV* s, int has_env, const EnvMaps
     floatV cr, cg, cb;
     if (!has_env) {
         const floatV k = ambient * occ * (1.0f - s->metallic) * sheen_scale * (1.0f - s->cc * s->fc);
-        cr = k * s->cr * (1.0f - lb_mix(s->sw * s->f0r, s->cr, s->metallic));
-        cg = k * s->cg * (1.0f - lb_mix(s->sw * s->f0g, s->cg, s->metallic));
-        cb = k * s->cb * (1.0f - lb_mix(s->sw * s->f0b, s->cb, s->metallic));
+        /* reflected + transmitted albedo: a constant ambient lights both sides alike */
+        const floatV ar = s->any_dt ? s->kfr + s->kbr : s->kfr, ag = s->any_dt ? s->kfg + s->kbg : s->kfg;
+        const floatV ab = s->any_dt ? s->kfb + s->kbb : s->kfb;
+        cr = k * ar * (1.0f - lb_mix(s->sw * s->f0r, s->cr, s->metallic));
+        cg = k * ag * (1.0f - lb_mix(s->sw * s->f0g, s->cg, s->metallic));
+        cb = k * ab * (1.0f - lb_mix(s->sw * s->f0b, s->cb, s->metallic));
     } else {
         floatV er, eg, eb, A, B, C;
         env_irradianceV(env, s->n.x, s->n.y, s->n.z, &er, &eg, &eb);
+        er *= s->kfr; eg *= s->kfg; eb *= s->kfb;         /* the diffuse radiance: E(N) c dw (1 - dt) ... */
+        if (s->any_dt) {                                  /* ... + E(-N) dtc dw dt, the light through the surface */
+            floatV tr, tg, tb;
+            env_irradianceV(env, -s->n.x, -s->n.y, -s->n.z, &tr, &tg, &tb);
+            er += tr * s->kbr; eg += tg * s->kbg; eb += tb * s->kbb;
+        }
         env_dfgV(env, s->nv, s->rough, &A, &B, &C);
         vec3V nr = s->n;                        /* the normal R reflects about: ibl.glsl's bent normal with anisotropy */
         if (s->any_aniso) {
@@ -512,7 +491,7 @@ static inline void layered_ambient(const LayeredV* s, int has_env, const EnvMaps
         const floatV nv5 = lb_pow5(1.0f - s->nv);
         const floatV fid_max = lb_max3(s->fidr, s->fidg, s->fidb);
 #define LB_CHANNEL(c, f0, fid, fim, E, P) \
-        lb_base_mix(s, (E) * s->c, P, lb_fss_ess(s->f0, s->sw, s->rough, nv5, A, B, multiscatter), \
+        lb_base_mix(s, E, P, lb_fss_ess(s->f0, s->sw, s->rough, nv5, A, B, multiscatter), \
                     lb_fss_ess(s->c, (floatV)1.0f, s->rough, nv5, A, B, multiscatter), s->fid, s->fim, fid_max)
         cr = LB_CHANNEL(cr, f0r, fidr, fimr, er, pr);
         cg = LB_CHANNEL(cg, f0g, fidg, fimg, eg, pg);

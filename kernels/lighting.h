@@ -224,6 +224,29 @@ static inline floatV spot_cone(const Light* lt, floatV cos_a)
     return s * s;
 }
 
+/* Light k of the run's light list (of all lights with BRUTE_FORCE) at the points (px, py_, pz): the
+ * lanes of `on` within its radius (*reach), its unit direction (*lx, *ly, *lz) and its falloff × spot
+ * cone (*atten; left unset when no lane is within reach). The head of the layered and the transmitted light
+ * walks (layer_shading.h, transmission.h). */
+static inline Light light_at(const LightEnv* env, int first, int k, intV on, floatV px, floatV py_, floatV pz,
+                             intV* reach, floatV* lx, floatV* ly, floatV* lz, floatV* atten)
+{
+#if BRUTE_FORCE
+    const Light lt = env->lights[k];
+#else
+    const Light lt = env->lights[env->tile_lights[first + k]];
+#endif
+    const floatV d2 = light_vector(&lt, px, py_, pz, lx, ly, lz);
+    const float r2 = lt.radius * lt.radius;
+    *reach = on & (d2 < r2);
+    if (!ANY(*reach)) return lt;
+    *atten = light_falloff(&lt, d2, r2, *reach);
+    const floatV inv_l = RSQRT(fmax(d2, 1e-30f));
+    *lx *= inv_l; *ly *= inv_l; *lz *= inv_l;
+    if (lt.type == LIGHT_SPOT) *atten *= spot_cone(&lt, spot_cos(&lt, *lx, *ly, *lz));
+    return lt;
+}
+
 /* The glTF lanes' terms of a light of colour c reaching them with k = A·max(N·L, 0) (`diff`):
  * diff and spec become k·(1 − w)/π and k·D·V·(1 − w) there (the caller adds them × c like the
  * Blinn-Phong ones), and k·D·V·w·c goes to T (brdf.h). */

@@ -55,7 +55,9 @@
  * 4x4 block keeps round(16·alpha) pixels, 17 opacity levels. Per material m the ranks rotate by
  * m and odd materials shift the pattern two rows, so overlapping layers of two materials keep
  * different pixels (over all pairs of materials 0..11 at alpha 1/4, 1/2, 3/4 the back layer
- * keeps at least 1/16 of the overlap; on average about alpha·(1 - alpha), as independent noise). */
+ * keeps at least 1/16 of the overlap; on average about alpha·(1 - alpha), as independent noise).
+ * A transmissive (KHR_materials_transmission) fragment's alpha is scaled by Material.door_alpha =
+ * 1 - transmission·(1 - metallic): it keeps the pixels it does not let through, shaded opaque. */
 constant uchar BAYER4[16] = { 0, 8, 2, 10, 12, 4, 14, 6, 3, 11, 1, 9, 15, 7, 13, 5 };
 
 static inline float screen_door_threshold(int px, int py, int material)
@@ -117,10 +119,18 @@ void raster_tiles(global const Prim* prims, global const int* tile_offsets, glob
                 if (!ANY(wins)) continue;
                 if (p.flags & PRIM_MASKED) {
                     const Material m = materials[p.material];
-                    const floatV alpha = prim_alpha_run(&p, sx0, sy0 + 256 * r, m, uvs, triangles, tx, wins);
+                    floatV alpha = prim_alpha_run(&p, sx0, sy0 + 256 * r, m, uvs, triangles, tx, wins);
                     floatV cutoff = m.alpha_cutoff;
-                    if (p.flags & PRIM_DITHER)
+                    if (p.flags & PRIM_DITHER) {
+                        /* a transmissive surface keeps what it does not let through (door_alpha;
+                         * 1 otherwise, and alpha · 1 is alpha: BLEND dithers as before) */
+                        if ((m.flags & MAT_TRANSMISSION) && !(m.flags & MAT_TX_ALPHA)) {   /* coverage, not alpha */
+                            if (m.flags & MAT_MASK) alpha = select((floatV)1.0f, (floatV)0.0f, alpha < cutoff);
+                            else alpha = 1.0f;
+                        }
+                        alpha = alpha * m.door_alpha;
                         for (int l = 0; l < VEC; ++l) LANE_F(cutoff, l) = screen_door_threshold(px0 + l, py, p.material);
+                    }
                     wins &= !(alpha < cutoff);             /* as the scalar test: NaN alpha keeps the fragment */
                 }
                 best_depth[s][r] = select(best_depth[s][r], depth, wins);

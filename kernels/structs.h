@@ -19,6 +19,10 @@
 #define MAT_SHARES(slot) (32u << ((slot) - 1))   /* slot 1..4 reads the base colour's footprint (material_eval.h) */
 #define MAT_GLTF_BRDF    512u       /* shaded with the glTF 2.0 BRDF (brdf.h; set on metallic-roughness
                                        materials unless RenderConfig.shading = "blinn_phong") */
+#define MAT_TRANSMISSION 1024u      /* KHR_materials_transmission: a fragment like BLEND (MAT_BLEND is set
+                                       too), shaded by transmission.h with its MaterialTx (docs/transmission.md) */
+#define MAT_TX_ALPHA     2048u      /* a transmissive material whose alphaMode is BLEND: alpha is its coverage
+                                       (OPAQUE: coverage 1, glTF ignores alpha; MASK: alpha >= cutoff) */
 
 /* Setup status per input triangle (a byte); STATUS_CLIPPED is or-ed in. */
 #define STATUS_EMITTED    0
@@ -74,7 +78,8 @@ typedef struct {
     uint  flags;          /* MAT_* */
     float refraction;     /* BLEND: screen-space distortion strength of what lies behind (docs/transparency.md) */
     int   ext;            /* index into MaterialExt[] (the surface layers), -1 = none */
-    int   pad[2];
+    int   tx;             /* index into MaterialTx[] (transmission, volume, dispersion), -1 = none */
+    float door_alpha;     /* screen door: the dither's alpha scale, 1 - transmission (1 - metallic); 1 = none */
     TexSlot slots[SLOT_COUNT];
 } Material;
 
@@ -89,7 +94,9 @@ typedef struct {
 #define XSLOT_IRIDESCENCE           7   /* R */
 #define XSLOT_IRIDESCENCE_THICKNESS 8   /* G */
 #define XSLOT_ANISOTROPY            9   /* RG direction, B strength */
-#define XSLOT_COUNT                 10
+#define XSLOT_DIFFUSE_TRANSMISSION  10  /* A */
+#define XSLOT_DIFFUSE_TRANSMISSION_COLOR 11  /* RGB (sRGB) */
+#define XSLOT_COUNT                 12
 
 /* MaterialExt.layers: which layers a material has (clrender.scene.material.Material.layers) */
 #define LAYER_SPECULAR    1u    /* KHR_materials_ior and/or KHR_materials_specular */
@@ -97,6 +104,7 @@ typedef struct {
 #define LAYER_SHEEN       4u
 #define LAYER_IRIDESCENCE 8u
 #define LAYER_ANISOTROPY  16u
+#define LAYER_DIFFUSE_TRANSMISSION 32u   /* KHR_materials_diffuse_transmission */
 
 /* The glTF surface-extension parameters of a material with layers (kernels/surface_layers.cl,
  * docs/shading.md): factors here, textures in the slots. */
@@ -117,9 +125,30 @@ typedef struct {
     float anisotropy_cos;      /* cos, sin of anisotropy_rotation */
     float anisotropy_sin;
     uint  layers;              /* LAYER_* */
-    int   pad[4];
+    float diffuse_transmission;            /* [0, 1]; texture A multiplies */
+    float diffuse_transmission_color[3];   /* linear [0, 1]; texture RGB (sRGB) multiplies */
     TexSlot slots[XSLOT_COUNT];
 } MaterialExt;
+
+/* MaterialTx.slots (clrender.scene.material.TX_TEXTURE_SLOTS order) */
+#define TXSLOT_TRANSMISSION 0   /* R */
+#define TXSLOT_THICKNESS    1   /* G */
+#define TXSLOT_COUNT        2
+
+/* The see-through extensions of a transmissive material (kernels/transmission.h,
+ * docs/transmission.md): KHR_materials_transmission, _volume, _dispersion, with the IOR and the
+ * specular factors that set the Fresnel weight of what is let through. */
+typedef struct {
+    float transmission;          /* factor, (0, 1]; texture R multiplies */
+    float thickness;             /* mesh units, 0 = thin-walled (no volume); texture G multiplies */
+    float attenuation_distance;  /* world units; INFINITY = no attenuation */
+    float dispersion;            /* 20 / Abbe number; 0 = none */
+    float attenuation_color[3];  /* linear */
+    float ior;                   /* KHR_materials_ior: >= 1, or 0 */
+    float specular_color[3];     /* KHR_materials_specular factors (linear) */
+    float specular_factor;
+    TexSlot slots[TXSLOT_COUNT];
+} MaterialTx;
 
 #define WRAP_REPEAT 0
 #define WRAP_CLAMP  1

@@ -1,5 +1,5 @@
 /* surface_layers.cl: the glTF surface layers (KHR_materials_ior, _specular, _clearcoat, _sheen,
- * _iridescence, _anisotropy; docs/shading.md "Surface layers"), shaded after the pipeline's
+ * _iridescence, _anisotropy, _diffuse_transmission; docs/shading.md "Surface layers"), shaded after the pipeline's
  * opaque pass over the pixels whose material has layers; every other pixel keeps its colour.
  *
  * Algorithm: the visibility buffer already names each pixel's prim, so the surface is rebuilt
@@ -119,7 +119,8 @@ void surface_layers(global const int* vis_prim, global const float* vis_depth, i
     const EnvMaps envmaps = ENV_INIT;
     floatV cr, cg, cb;
     shade_layered(&scene, &bary, &sf, material_ext, ext, on, has_tangents, sheen_lut, &env, range.x, range.y,
-                  vp.px, vp.py, vp.pz, z, v, px, py, has_env, &envmaps, ambient, ao_v, MULTISCATTER, &cr, &cg, &cb);
+                  vp.px, vp.py, vp.pz, z, v, px, py, has_env, &envmaps, ambient, ao_v, 1.0f, MULTISCATTER, &cr,
+                  &cg, &cb);     /* diffuse weight 1: opaque pixels have no KHR_materials_transmission */
 
     for (int c = 0; c < 3; ++c) {
         global float* plane = color + c * npix;

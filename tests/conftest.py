@@ -10,8 +10,10 @@ OpenCL is touched only when a collected test actually uses `device` (directly or
 """
 from __future__ import annotations
 
+import json
 import os
 import sys
+import time
 
 import pytest
 
@@ -179,6 +181,50 @@ def pytest_terminal_summary(terminalreporter):
     files = ", ".join(f"{name} {n}" for name, n in sorted(per_file.items(), key=lambda kv: (-kv[1], kv[0])))
     terminalreporter.write_line(f"clrender: {device_module.Device.build_count} OpenCL program builds "
                                 f"({sum(per_file.values())} distinct programs: {files})")
+
+
+ENV_BUILD_LOG = "CLRENDER_BUILD_LOG"
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_runtest_protocol(item, nextitem):
+    """$CLRENDER_BUILD_LOG=PATH: one JSON line per test (setup + call + teardown): its wall
+    seconds, start/end times, the programs it built (file, defines, build seconds) and those it
+    used (built by an earlier test or not; docs/testing.md, cold CI time). PoCL
+    compiles each kernel at its first launch, inside the test's time but not in the build seconds:
+    its cache's file times (program.bc, <kernel>.so) place those compiles between start and end."""
+    path = os.environ.get(ENV_BUILD_LOG)
+    core = sys.modules.get("clrender.device.core") if path else None
+    before = {id(d): len(d.built) for d in core._opened} if core else {}
+    if core is not None and not getattr(core.Device.has_program, "_clrender_log", False):
+        _log_program_uses(core.Device)     # loaded at collection by the device parametrization
+    _USED.clear()
+    t0, wall0 = time.perf_counter(), time.time()
+    yield
+    if not path:
+        return
+    core = sys.modules.get("clrender.device.core")
+    built = [{"file": spec.filename, "defines": dict(spec.defines), "s": round(s, 3), "device": d.info.id}
+             for d in (core._opened if core else []) for spec, s in d.built[before.get(id(d), 0):]]
+    used = sorted(str(spec) for spec in _USED)
+    with open(path, "a") as f:
+        f.write(json.dumps({"test": item.nodeid, "s": round(time.perf_counter() - t0, 3), "start": wall0,
+                            "end": time.time(), "built": built, "used": used}) + "\n")
+
+
+_USED: set = set()
+
+
+def _log_program_uses(device_class):
+    """Record each spec a test asks for (a frame's up-front build asks has_program of each)."""
+    has = device_class.has_program
+
+    def has_program(self, spec):
+        _USED.add(spec)
+        return has(self, spec)
+
+    has_program._clrender_log = True
+    device_class.has_program = has_program
 
 
 def blinn_phong_renderer_fixture():

@@ -27,6 +27,9 @@ SWEEPS = {
     "iridescence": [dict(iridescence=f, iridescence_thickness_max=t) for f in (0.5, 1.0) for t in (150.0, 300.0, 450.0, 700.0)],
     "anisotropy": [dict(anisotropy_strength=s, anisotropy_rotation=a, roughness=0.6) for a in (0.0, 1.1)
                    for s in (0.2, 0.5, 0.8, 1.0)],
+    "diffuse_transmission": [dict(diffuse_transmission=t) for t in (0.25, 0.5, 0.75, 1.0)] + [
+        dict(diffuse_transmission=t, diffuse_transmission_color=(1.0, 0.2, 0.1)) for t in (0.5, 1.0)] + [
+        dict(diffuse_transmission=0.6, metallic=0.5), dict(diffuse_transmission=0.8, roughness=0.2)],
 }
 
 

@@ -67,6 +67,7 @@ def test_report_on_every_device_agrees():
     assert report.ok, report.table()
     assert len(report.devices) == 2 or not simulated
     assert {"demo", "dense"} <= {r.case for r in report.rows}
+    assert simulated or {"layers", "transmission"} <= {r.case for r in report.rows}, "the see-through kernels' case"
     assert {r.aov for r in report.rows} == set(check.AOVS)
 
 

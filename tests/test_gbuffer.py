@@ -53,9 +53,11 @@ def test_struct_layouts_match_device(cl_device):
                                                 "cos_inner", "shadow_size", "shadow", "falloff"]),
                          (structs.shadow_view_dtype, ["m", "x0", "y0", "size", "ortho", "texel", "far", "split",
                                                       "pad"]),
-                         (structs.material_ext_dtype, list(structs.material_ext_dtype.names))):
+                         (structs.material_ext_dtype, list(structs.material_ext_dtype.names)),
+                         (structs.material_tx_dtype, list(structs.material_tx_dtype.names))):
         expect.append(dtype.itemsize)
         expect.extend(dtype.fields[n][1] for n in names)
+    expect.append(-12345)                   # the probe's end marker: no entry missed or extra
     assert got[: len(expect)] == expect
 
 

@@ -379,22 +379,22 @@ def test_one_warning_per_file_and_feature(tmp_path):
     prims = [primitive(material=0, JOINTS_0=joints, WEIGHTS_0=weights, targets=morph, COLOR_1=QUAD_NORMALS),
              primitive(material=1, JOINTS_0=joints, WEIGHTS_0=weights, targets=morph, COLOR_1=QUAD_NORMALS),
              primitive(mode=0), primitive(mode=1), primitive(mode=6), primitive(mode=6)]
-    mats = [{"extensions": {"KHR_materials_transmission": {}, "KHR_materials_unlit": {}},
+    mats = [{"extensions": {"KHR_materials_volume_scatter": {}, "KHR_materials_unlit": {}},
              "pbrMetallicRoughness": {"baseColorTexture": {"index": 0}}},
-            {"extensions": {"KHR_materials_transmission": {}, "VENDOR_thing": {}},
+            {"extensions": {"KHR_materials_volume_scatter": {}, "VENDOR_thing": {}},
              "pbrMetallicRoughness": {"baseColorTexture": {"index": 0}}}]
     nodes = [{"mesh": 0, "skin": 0, "extensions": {"EXT_node_magic": {}}}, {"mesh": 0, "skin": 0}]
     path = write_gltf(tmp_path / "features.gltf", prims, mats, images=[image(1)], nodes=nodes,
                       samplers=[{"magFilter": 9728}], textures=[{"source": 0, "sampler": 0}],
                       skins=[{"joints": [0]}], animations=[weights_animation(), weights_animation()],
-                      extensionsUsed=["KHR_materials_transmission", "KHR_materials_unlit", "VENDOR_thing",
-                                      "EXT_node_magic", "KHR_materials_dispersion"])
+                      extensionsUsed=["KHR_materials_volume_scatter", "KHR_materials_unlit", "VENDOR_thing",
+                                      "EXT_node_magic", "KHR_animation_pointer"])
     with warnings.catch_warnings(record=True) as record:
         warnings.simplefilter("always")
         scene = load_scene(path)
     messages = [str(w.message) for w in record]
-    features = ["KHR_materials_transmission", "VENDOR_thing", "EXT_node_magic",
-                "KHR_materials_dispersion", "point and line primitives", "TRIANGLE_FAN", "COLOR_1", "magFilter NEAREST"]
+    features = ["KHR_materials_volume_scatter", "VENDOR_thing", "EXT_node_magic",
+                "KHR_animation_pointer", "point and line primitives", "TRIANGLE_FAN", "COLOR_1", "magFilter NEAREST"]
     for feature in features:
         hits = [m for m in messages if feature in m]
         assert len(hits) == 1, (feature, messages)

@@ -66,8 +66,9 @@ def quadrature(pixels, normals, views, base, metallic, roughness, rotation_deg=0
     L = lookup(pixels, dirs, rotation_deg) * texel_solid_angles(grid).reshape(-1, 1)
     out = np.empty((len(normals), 3))
     for i in range(len(normals)):
-        f, nl = brdf(normals[i][None], views[i][None], dirs, base[i], metallic[i], roughness[i])
-        out[i] = (f * (np.maximum(nl, 0.0)[:, None] * L)).sum(0)
+        up = dirs @ normals[i] > 0.0        # f is finite, so the lower hemisphere adds exact zeros: skipped
+        f, nl = brdf(normals[i][None], views[i][None], dirs[up], base[i], metallic[i], roughness[i])
+        out[i] = (f * (np.maximum(nl, 0.0)[:, None] * L[up])).sum(0)
     return out
 
 

@@ -2,20 +2,23 @@
 model (KHR_materials_ior/_specular/_clearcoat/_sheen/_iridescence/_anisotropy READMEs and the Khronos Sample
 Renderer where they allow an approximation), through the test kernel kernels/testing/layered_check.cl:
 
-* layered_light with each layer on alone (specular, clearcoat, sheen, iridescence, anisotropy) and all together,
+* layered_light with each layer on alone (specular, clearcoat, sheen, iridescence, anisotropy, diffuse transmission
+  with lights in front of and behind the surface) and all together,
   on seeded random geometry and materials: rtol 1e-4 (atol 1e-6 for values near 0). Sheen cases put N.V, N.L and
   the sheen roughness on the table's nodes, where the table is exact up to its quadrature, so the reference can
   integrate E directly (the table's entries and its bilinear lookup are checked on their own).
-* layered_ambient under an environment built here as arrays (the SH of a constant irradiance, prefiltered levels
-  whose radiance is linear in roughness and in the direction's v = acos(y)/pi, a DFG table linear in (N.V,
-  roughness): bilinear lookups of linear data are exact, so the reflection directions R, the anisotropic bent
-  normal's and the coat's Rcc are checked), with and without multiscatter, and the constant ambient; the emission scale.
+* layered_ambient under an environment built here as arrays (the SH of an irradiance linear in the normal's y, so
+  that the diffuse transmission's lookup at -N is checked, prefiltered levels whose radiance is linear in roughness
+  and in the direction's v = acos(y)/pi, a DFG table linear in (N.V, roughness): bilinear lookups of linear data
+  are exact, so the reflection directions R, the anisotropic bent normal's and the coat's Rcc are checked), with
+  and without multiscatter, and the constant ambient; the emission scale.
 * the sheen albedo table (sheen_albedo_lut) against a float64 quadrature (60 geometric N.L panels x 24
   Gauss-Legendre points, 512 azimuths): rtol 1e-4 + atol 5e-6.
 * every layer degenerate: layered_light equals brdf.h's glTF BRDF (gltf_light_terms composed as compose_gltf)
   to 1e-5 at metallic 0 and 1.
 Mutations of the reference (the coat's Fresnel at N instead of Ncc, no (1 - F) on the diffuse, sheen scaling by E(NV)
-only, OPD at cosTheta1) are asserted to fail the comparison. Each test runs at VEC 1 and the device's width;
+only, OPD at cosTheta1, the transmitted light's Fresnel at H instead of the mirrored light's, the reflected diffuse
+not scaled by 1 - dt, the transmitted environment read at N) are asserted to fail the comparison. Each test runs at VEC 1 and the device's width;
 the header is also built at VEC 4, 8 and 16.
 """
 from __future__ import annotations
@@ -170,7 +173,8 @@ def ref_light(p, mut=()):
     else:
         dv = ggx_dv(q["alpha"], nl, nh, nv)
     w = pow5(1 - vh)
-    diffuse = I * nl * c / PI
+    kf = (1 if "dt_front_unscaled" in mut else (1 - q["dt"])) * q["dw"]
+    diffuse = I * nl * c * kf / PI
     spec = I * nl * dv
     fd = sw * q["f0"] + (sw - sw * q["f0"]) * w
     metal = (c + (1 - c) * w) * spec
@@ -191,6 +195,19 @@ def ref_light(p, mut=()):
         coat = I * nccl * ggx_dv(q["cc_alpha"], nccl, ncch, nccv) if nccl > 0 else 0 * I
         t = q["cc"] * q["fc"]
         col = col * (1 - t) + coat * t
+    if q["dt"] > 0 and n @ L < 0:       # KHR_materials_diffuse_transmission: the diffuse BTDF from behind
+        nlb = -(n @ L)
+        lm = L + 2 * nlb * n                                     # the light mirrored through the surface
+        hb = (lm + v) / np.linalg.norm(lm + v) if "back_fresnel_at_h" not in mut else h
+        fdb = sw * q["f0"] + (sw - sw * q["f0"]) * pow5(1 - np.clip(v @ hb, 0, 1))
+        btdf = I * nlb * q["dtc"] * q["dt"] * q["dw"] / PI
+        back = btdf * (1 - fdb)
+        if q["irid"] > 0:
+            back = back + ((1 - q["fid"].max()) * btdf - back) * q["irid"]
+        back = back * (1 - m)
+        if shc.max() > 0:
+            back = back * max(min(1 - shc.max() * q["E_nv"], 1 - shc.max() * sheen_albedo(nlb, q["sh_rough"])), 0)
+        col = col + back * (1 - q["cc"] * q["fc"])
     return col, q
 
 
@@ -198,6 +215,7 @@ def ref_light(p, mut=()):
 ENV_LC = np.array([0.7, 0.9, 1.3])       # irradiance E/pi; prefiltered level at roughness r: LC (1 + 0.5 r) (1 + TILT v)
 ENV_K = 6                                # specular levels
 ENV_W, ENV_H, ENV_TILT = 8, 16, 0.3      # and each level's rows times 1 + TILT v (v = acos(y)/pi; linear in v)
+ENV_IRR_Y = 0.4                          # the irradiance is LC (1 + IRR_Y n_y): an SH band-1 term
 DFG_N = 8
 DFG_A = (0.35, 0.5, -0.2)                # A = a0 + a1 clamp(nv) + a2 rough (linear: bilinear lookups are exact)
 DFG_B = (0.02, -0.015, 0.06)
@@ -214,6 +232,7 @@ def env_buffers(dev: Device):
         texels.append(ENV_LC * scale * rows)
     sh = np.zeros(27)
     sh[:3] = ENV_LC / 0.282094791773878                  # E/pi of a constant radiance is that radiance
+    sh[3:6] = ENV_LC * ENV_IRR_Y / 0.488602511902920     # Y_1 = K1 y (environment.h)
     jj, ii = np.meshgrid(np.arange(DFG_N), np.arange(DFG_N), indexing="ij")
     x, y = (ii + 0.5) / DFG_N, jj / (DFG_N - 1)
     dfg = np.stack([DFG_A[0] + DFG_A[1] * x + DFG_A[2] * y, DFG_B[0] + DFG_B[1] * x + DFG_B[2] * y,
@@ -229,8 +248,10 @@ def ref_ambient(p, has_env, ambient, multiscatter, mut=()):
     c, m, sw, r, nv = q["c"], q["metallic"], q["sw"], q["rough"], q["nv"]
     shm, E = q["sh"].max(), q["E_nv"]
     occ = q["ao"] * q["occ"]
+    dt, dw = q["dt"], q["dw"]
     if not has_env:
-        return (ambient * occ * c * (1 - m) * (1 - (sw * q["f0"] * (1 - m) + c * m)) * (1 - shm * E)
+        albedo = (c * (1 - dt) + q["dtc"] * dt) * dw               # both sides lit by the constant ambient
+        return (ambient * occ * albedo * (1 - m) * (1 - (sw * q["f0"] * (1 - m) + c * m)) * (1 - shm * E)
                 * (1 - q["cc"] * q["fc"]))
     xc = np.clip(nv, 0.5 / DFG_N, 1 - 0.5 / DFG_N)
     A, B = DFG_A[0] + DFG_A[1] * xc + DFG_A[2] * r, DFG_B[0] + DFG_B[1] * xc + DFG_B[2] * r
@@ -258,7 +279,10 @@ def ref_ambient(p, has_env, ambient, multiscatter, mut=()):
         nb = nb / np.linalg.norm(nb)
     p_r = pref(r, nb)
 
-    f_diffuse = ENV_LC * c
+    def irradiance(nrm):
+        return ENV_LC * (1 + ENV_IRR_Y * nrm[1])
+    far = q["n"] if "dt_env_front" in mut else -q["n"]            # the light through the surface: from behind
+    f_diffuse = (irradiance(q["n"]) * c * (1 - dt) + irradiance(far) * q["dtc"] * dt) * dw
     f_metal = fss(c, 1.0) * p_r
     f_diel = f_diffuse * (1 - fss(q["f0"], sw)) + p_r * fss(q["f0"], sw)
     if q["irid"] > 0:
@@ -276,7 +300,7 @@ def ref_ambient(p, has_env, ambient, multiscatter, mut=()):
 # --- queries and the device ------------------------------------------------------------------------------------
 KEYS = (("n", 3), ("ng", 3), ("ncc", 3), ("at", 3), ("v", 3), ("c", 3), ("metallic", 1), ("rough", 1), ("ior", 1),
         ("sw", 1), ("sc", 3), ("cc", 1), ("cc_rough", 1), ("sh", 3), ("sh_rough", 1), ("irid", 1), ("irid_ior", 1),
-        ("thick", 1), ("aniso", 1), ("L", 3), ("I", 3), ("ao", 1), ("occ", 1))
+        ("thick", 1), ("aniso", 1), ("L", 3), ("I", 3), ("ao", 1), ("occ", 1), ("dt", 1), ("dtc", 3), ("dw", 1))
 
 
 def unit(x):
@@ -299,7 +323,8 @@ def base_query(rng, metallic=None):
                 metallic=rng.choice([0.0, 1.0, rng.uniform()]) if metallic is None else metallic,
                 rough=rng.uniform(0.3, 1.0), ior=1.5, sw=1.0, sc=np.ones(3), cc=0.0, cc_rough=0.0, sh=np.zeros(3),
                 sh_rough=0.0, irid=0.0, irid_ior=1.3, thick=0.0, aniso=0.0, L=around(n, rng.uniform(0.1, 0.95), rng),
-                I=rng.uniform(0.5, 3.0, 3), ao=rng.uniform(0.5, 1.0), occ=rng.uniform(0.5, 1.0))
+                I=rng.uniform(0.5, 3.0, 3), ao=rng.uniform(0.5, 1.0), occ=rng.uniform(0.5, 1.0), dt=0.0, dtc=np.ones(3),
+                dw=1.0)
 
 
 def with_layer(q, layer, rng):
@@ -315,6 +340,12 @@ def with_layer(q, layer, rng):
         q.update(irid=rng.uniform(0.3, 1.0), irid_ior=rng.uniform(1.2, 2.0), thick=rng.uniform(100, 800))
     if layer in ("anisotropy", "all"):
         q.update(aniso=rng.uniform(0.2, 1.0))
+    if layer.startswith("dt_") or layer == "diffuse_transmission":
+        q = with_layer(q, "all", rng) if layer == "dt_all" else q      # every layer: N.L, N.V on the sheen nodes
+        q.update(dt=rng.uniform(0.2, 1.0), dtc=rng.uniform(0.1, 1.0, 3), dw=rng.choice([1.0, rng.uniform(0.3, 1.0)]))
+        side = {"dt_back": -1, "dt_front": 1}.get(layer, rng.choice([-1, 1]))
+        if side * (q["n"] @ q["L"]) < 0:                                   # mirrored through the surface
+            q["L"] = q["L"] - 2 * (q["n"] @ q["L"]) * q["n"]
     return q
 
 
@@ -375,15 +406,15 @@ def bad(got, want, rtol=1e-4, atol=1e-6):
 
 
 # --- tests ------------------------------------------------------------------------------------------------------
-LAYERS = ("specular", "clearcoat", "sheen", "iridescence", "anisotropy", "all")
+LAYERS = ("specular", "clearcoat", "sheen", "iridescence", "anisotropy", "all", "diffuse_transmission", "dt_all")
 
 
 @pytest.mark.parametrize("layer", LAYERS)
 def test_light_each_layer_matches_float64_model(cl_device, layer):
     rng = np.random.default_rng(100 + LAYERS.index(layer))
     qs = [with_layer(base_query(rng), layer, rng) for _ in range(12)]
-    if layer not in ("sheen", "all"):
-        qs[0]["L"] = around(qs[0]["n"], -0.3, rng)           # behind the base: 0, or the coat alone
+    if layer not in ("sheen", "all", "dt_all"):
+        qs[0]["L"] = around(qs[0]["n"], -0.3, rng)           # behind the base: 0, the coat alone, or transmitted
     for vec in vec_widths(cl_device):
         got = Probe(cl_device, vec)(qs)[:, 0:3]
         want = np.array([ref_light(q)[0] for q in qs])
@@ -396,7 +427,8 @@ def test_light_each_layer_matches_float64_model(cl_device, layer):
 
 
 @pytest.mark.parametrize("mutation, layer", [("fc_at_n", "clearcoat"), ("no_diffuse_fresnel", "specular"),
-                                             ("sheen_nv_only", "sheen"), ("opd_cos1", "iridescence")])
+                                             ("sheen_nv_only", "sheen"), ("opd_cos1", "iridescence"),
+                                             ("back_fresnel_at_h", "dt_back"), ("dt_front_unscaled", "dt_front")])
 def test_light_comparison_can_fail(cl_device, mutation, layer):
     rng = np.random.default_rng(7)
     qs = [with_layer(base_query(rng, metallic=0.0), layer, rng) for _ in range(12)]
@@ -416,9 +448,12 @@ def test_ambient_and_emission_match_float64_model(cl_device, has_env, multiscatt
         emission = np.array([1 - q["cc"] * prepared(q)["fc"] for q in qs])
         assert not bad(out[:, 6], emission, 1e-5).any()
     if has_env:     # the reference with the coat's Fresnel at N instead of Ncc must fail
-        for mutation, key in (("fc_at_n", "cc"), ("no_bent_normal", "aniso")):
+        for mutation, key in (("fc_at_n", "cc"), ("no_bent_normal", "aniso"), ("dt_env_front", "dt")):
             want = np.array([ref_ambient(q, has_env, 0.37, multiscatter, (mutation,)) for q in qs])
-            assert bad(out[:, 3:6], want)[[i for i, q in enumerate(qs) if q[key] > 0]].all(axis=1).mean() > 0.5
+            # (the irradiance at -N differs from N's where N is not horizontal, and a metal has no diffuse)
+            sel = [i for i, q in enumerate(qs) if q[key] > 0 and (key != "dt" or (q["metallic"] < 0.9
+                                                                               and abs(q["n"][1]) > 0.2))]
+            assert len(sel) >= 2 and bad(out[:, 3:6], want)[sel].all(axis=1).mean() > 0.5, mutation
 
 
 def test_sheen_table_matches_float64_quadrature(cl_device):

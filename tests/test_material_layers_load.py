@@ -93,7 +93,8 @@ def test_every_extension_field(tmp_path):
     for t, src in zip(scene.textures, (0, 0, 1, 0, 0)):
         np.testing.assert_array_equal(t.rgba, imgs[src])
     want = {"specular": 1, "specular_color": 0, "clearcoat": 2, "clearcoat_roughness": 2, "clearcoat_normal": 2,
-            "sheen_color": 3, "sheen_roughness": 4, "iridescence": 2, "iridescence_thickness": 1, "anisotropy": 2}
+            "sheen_color": 3, "sheen_roughness": 4, "iridescence": 2, "iridescence_thickness": 1, "anisotropy": 2,
+            "diffuse_transmission": -1, "diffuse_transmission_color": -1}      # issue 38's slots: not given
     assert {s: getattr(m, f"{s}_texture") for s in EXT_TEXTURE_SLOTS} == want
     assert m.base_color_texture == 0
     uv = {s: getattr(m, f"{s}_uv") for s in EXT_TEXTURE_SLOTS}
@@ -101,7 +102,8 @@ def test_every_extension_field(tmp_path):
                   "clearcoat_roughness": UVTransform(0, (0.25, -0.5), 0.5, (2.0, 4.0)),
                   "clearcoat_normal": UVTransform(1), "sheen_color": UVTransform(), "sheen_roughness": UVTransform(),
                   "iridescence": UVTransform(), "iridescence_thickness": UVTransform(1),
-                  "anisotropy": UVTransform(0, (0.0, 0.0), -0.75, (1.0, 1.0))}
+                  "anisotropy": UVTransform(0, (0.0, 0.0), -0.75, (1.0, 1.0)),
+                  "diffuse_transmission": UVTransform(), "diffuse_transmission_color": UVTransform()}
     assert (m.ior, m.specular_factor, m.specular_color) == (1.45, 0.7, (1.5, 0.5, 0.25))   # > 1 kept (spec)
     assert (m.clearcoat, m.clearcoat_roughness, m.clearcoat_normal_scale) == (0.8, 0.3, -0.5)
     assert (m.sheen_color, m.sheen_roughness) == ((0.2, 0.4, 0.6), 0.5)
@@ -109,7 +111,7 @@ def test_every_extension_field(tmp_path):
         (0.9, 1.8, 200.0, 600.0)
     assert (m.anisotropy_strength, m.anisotropy_rotation) == (0.6, 1.25)
     assert m.layers == ALL_LAYERS
-    assert set(m.layer_textures_used()) == set(EXT_TEXTURE_SLOTS)
+    assert set(m.layer_textures_used()) == set(EXT_TEXTURE_SLOTS[:10])    # issue 37's ten slots
     assert m.layer_textures_used()["clearcoat_roughness"] == (2, UVTransform(0, (0.25, -0.5), 0.5, (2.0, 4.0)))
     assert m.textures_used() == {"base_color": (0, UVTransform())}          # the base slots only
     # the base layer is read as before
@@ -168,11 +170,11 @@ def test_extension_defaults(tmp_path):
 
 def test_still_unimplemented_extension_warns(tmp_path):
     """Only extensions clrender does not implement keep the "ignored" warning."""
-    ext = {"KHR_materials_clearcoat": {"clearcoatFactor": 1}, "KHR_materials_transmission": {}}
+    ext = {"KHR_materials_clearcoat": {"clearcoatFactor": 1}, "KHR_materials_volume_scatter": {}}
     path = write_gltf(tmp_path / "w.gltf", [primitive(material=0)], [{"extensions": ext}],
                       extensionsUsed=sorted(ext))
     _, messages = load_warned(path)
-    assert len(messages) == 1 and "extension KHR_materials_transmission" in messages[0], messages
+    assert len(messages) == 1 and "extension KHR_materials_volume_scatter" in messages[0], messages
     assert "ignored" in messages[0] and "clearcoat" not in messages[0]
 
 
@@ -312,7 +314,7 @@ def test_required_surface_extensions_load(tmp_path):
     assert load_quietly(path).triangle_count == 2
 
 
-@pytest.mark.parametrize("name", ["KHR_materials_transmission", "KHR_materials_volume"])
+@pytest.mark.parametrize("name", ["KHR_materials_volume_scatter", "KHR_animation_pointer"])
 def test_required_unimplemented_extension_fails(tmp_path, name):
     required = ["KHR_materials_clearcoat", name]
     path = write_gltf(tmp_path / "r.gltf", extensionsUsed=required, extensionsRequired=required)
@@ -329,7 +331,7 @@ def test_material_record_defaults_and_slots():
     m = Material.from_metallic_roughness("m", (1, 1, 1, 1), 0.0, 0.5)
     assert EXT_TEXTURE_SLOTS == ("specular", "specular_color", "clearcoat", "clearcoat_roughness", "clearcoat_normal",
                                  "sheen_color", "sheen_roughness", "iridescence", "iridescence_thickness",
-                                 "anisotropy")
+                                 "anisotropy", "diffuse_transmission", "diffuse_transmission_color")
     assert m.layers == frozenset() and m.layer_textures_used() == {}
     t = Material.from_metallic_roughness("t", (1, 1, 1, 1), 0.0, 0.5, anisotropy_texture=3,
                                          anisotropy_uv=UVTransform(1), ior=1.5)

@@ -228,5 +228,6 @@ def test_info_lists_the_objects(shared_mesh, capsys):
     assert "objects    2 ('A', 'B'), 1 with extras" in capsys.readouterr().out
     assert main(["info", scene.source, "--json"]) == 0
     listed = json.loads(capsys.readouterr().out)["object_list"]
-    assert listed == [{"name": "A", "mesh": "ball", "path": "Root/A", "extras": EXTRAS, "node": 1},
-                      {"name": "B", "mesh": "ball", "path": "Root/B", "extras": None, "node": 2}]
+    assert listed == [{"name": "A", "mesh": "ball", "path": "Root/A", "extras": EXTRAS, "node": 1, "volume_scale": 1.0},
+                      {"name": "B", "mesh": "ball", "path": "Root/B", "extras": None, "node": 2,
+                       "volume_scale": pytest.approx((0.9 * 1.1 * 0.9) ** (1 / 3))}]     # |det(scale)|^(1/3)

@@ -12,7 +12,7 @@ from clrender.render import memory
 W, H = 40, 28
 
 
-def hard_edged_scene() -> Scene:
+def hard_edged_scene(shadow_map_size: int = 256) -> Scene:
     """A rotated square, thin bars and a triangle of distinct colours over a wall; two point lights
     and a spot light with a shadow map, so colour, light_count and shadow vary across edges."""
     rng = np.random.default_rng(4)
@@ -33,7 +33,8 @@ def hard_edged_scene() -> Scene:
     scene.triangle_material = np.array([0, 0, 1, 1, 2, 2, 3, 3, 4, 4], np.int32)
     scene.add_point_light((-2, 1, -2), (3, 2.5, 2), 9.0)
     scene.add_point_light((2.5, -1, -3), (0.5, 1.5, 3), 7.0)
-    scene.add_spot_light((0, 0, 0), (0, 0, -1), (4, 4, 4), 20.0, 25.0, 40.0, shadow=True, shadow_map_size=256)
+    scene.add_spot_light((0, 0, 0), (0, 0, -1), (4, 4, 4), 20.0, 25.0, 40.0, shadow=True,
+                         shadow_map_size=shadow_map_size)
     scene.ambient = 0.1
     return scene
 
@@ -148,7 +149,7 @@ def test_resolve_kernels_tiny_frame(device, capfd, name):
     """Oclgrind tier: resolve_rows/resolve_cols/decimate_gbuffer on a 12x8 frame at supersample 2
     (odd sizes of the internal frame's tiles), against the NumPy filter and nearest sample."""
     from test_oclgrind_tier import assert_no_device_diagnostics
-    scene = hard_edged_scene()
+    scene = hard_edged_scene(shadow_map_size=64)      # both frames share it; 256² took minutes in Oclgrind
     prev = Camera.look_at((0.2, 0, 0), (0.2, 0, -1), fov_y_deg=70.0, near=0.1, far=50.0)
     big = clrender.Renderer(24, 16, device=device.id).render(scene, CAMERA, previous_camera=prev)
     frame = clrender.Renderer(12, 8, device=device.id, supersample=2, supersample_filter=name).render(

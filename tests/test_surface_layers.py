@@ -26,8 +26,8 @@ SUN = dict(type="sun", direction=SUN_DIRECTION, color=(3.0, 3.0, 3.0))
 FIELD = dict(ior="ior", specular_factor="sw", specular_color="sc", clearcoat="cc", clearcoat_roughness="ccr",
              sheen_color="shc", sheen_roughness="shr", iridescence="irid", iridescence_thickness_max="d",
              iridescence_ior="irid_ior", anisotropy_strength="aniso", anisotropy_rotation="aniso_rot",
-             metallic="m", roughness="r")
-LAYERS = ("specular", "clearcoat", "sheen", "iridescence", "anisotropy")
+             metallic="m", roughness="r", diffuse_transmission="dt")
+LAYERS = ("specular", "clearcoat", "sheen", "iridescence", "anisotropy", "diffuse_transmission")
 
 
 def coloured_environment(h=32, seed=3) -> np.ndarray:
@@ -51,6 +51,7 @@ def reference(frame, materials, lights=(), environment=None, sample=None, seed=1
     params = {name: np.asarray([getattr(m, key) for m in materials], np.float64)[mat] for key, name in FIELD.items()}
     params["sc"] = np.asarray([m.specular_color for m in materials], np.float64)[mat]
     params["shc"] = np.asarray([m.sheen_color for m in materials], np.float64)[mat]
+    params["dtc"] = np.asarray([m.diffuse_transmission_color for m in materials], np.float64)[mat]
     c = np.asarray([m.base_color[:3] for m in materials], np.float64)[mat]
     surf = make_surface(c=c, N=x["normal"][idx], V=x["view"][idx], T=t, P=p, **params)
     ref = shade_layered(surf, lights=lights, environment=environment)

@@ -81,7 +81,7 @@ TABLE: tuple[AOV, ...] = (
     AOV("light_count", _I, 1, "buffer", "heat", "", "lights the culling assigned to the pixel's tile",
         resolution="internal"),
     AOV("depth", _F, 1, "gbuffer", "depth", "Z", "z-depth along the optical axis (linear_depth × far), "
-        "+inf on background", field="linear_depth"),
+        "+inf on background; the nearest transmissive surface's where one is in front", field="linear_depth"),
     AOV("linear_depth", _F, 1, "gbuffer", "depth", "Z", "depth / far", field="linear_depth"),
     AOV("normal", _F, 3, "gbuffer", "normal", "XYZ", "world-space unit normal, 0 on background", field="normal"),
     AOV("albedo", _F, 3, "gbuffer", "srgb", "RGB", "diffuse albedo (glTF BRDF pixels: base colour × (1 − metallic))",
@@ -107,7 +107,8 @@ TABLE: tuple[AOV, ...] = (
         resolution="internal", fill=1.0),
     AOV("fragment_count", _I, 1, "buffer", "heat", None, "transparent fragments in front of the opaque surface (A-buffer, peeling)",
         resolution="internal", fill=0),
-    AOV("transmittance", _F, 1, "buffer", "unit", "", "what the transparent layers leave of what lies behind (1 = nothing)",
+    AOV("transmittance", _F, 1, "buffer", "unit", "", "what the transparent layers leave of what lies behind (1 = nothing; "
+        "the mean of the channels' behind tinted glass)",
         resolution="internal", fill=1.0),
     AOV("edges", "uint8", 1, "buffer", "mask", None, "1 where edge_aa marked an edge pixel (all 0 without edge_aa)", fill=0),
     AOV("image", "uint8", 3, "buffer", "picture", None, "sRGB, the tone-mapped colour", packing="rgba8"),

@@ -20,7 +20,7 @@ import numpy as np
 
 from clrender.scene.camera import Camera
 from clrender.scene.geometry import vertex_normals
-from clrender.scene.material import EXT_TEXTURE_SLOTS
+from clrender.scene.material import EXT_TEXTURE_SLOTS, TX_TEXTURE_SLOTS
 from clrender.scene.model import TEXTURE_SLOTS, Material, Scene, SceneError, Texture
 from clrender.scene.tangents import NO_TANGENT, generate_tangents
 
@@ -261,8 +261,8 @@ def charge_scene_arrays(vertices: int, triangles: int, vertex_bytes: int, source
 # -- combining scenes (TOML) -------------------------------------------------------------------------
 def shift_textures(material: Material, offset: int) -> Material:
     """`material` with every texture slot's index moved by `offset` (-1, no texture, stays -1)."""
-    kw = {f"{s}_texture": getattr(material, f"{s}_texture") + offset for s in TEXTURE_SLOTS + EXT_TEXTURE_SLOTS
-          if getattr(material, f"{s}_texture") >= 0}
+    kw = {f"{s}_texture": getattr(material, f"{s}_texture") + offset
+          for s in TEXTURE_SLOTS + EXT_TEXTURE_SLOTS + TX_TEXTURE_SLOTS if getattr(material, f"{s}_texture") >= 0}
     return replace(material, **kw) if kw and offset else material
 
 

@@ -4,7 +4,10 @@ shaded with the tile light lists and blended front to back (docs/transparency.md
 
 The fragment buffer has no cap: its total is read back after the frame and, when it exceeds
 the capacity, the buffer grows (after a check against the device's memory) and the frame is
-rendered again. `max_fragments_per_pixel` = K bounds every list to the K nearest fragments."""
+rendered again. `max_fragments_per_pixel` = K bounds every list to the K nearest fragments.
+A scene with transmissive materials resolves with forward.h's TRANSMISSION build, which also
+writes the tx planes (TX_PLANES: per-channel transmittance, the lookup behind, the nearest
+transmissive depth), allocated at its first frame of a size and published as "tx_planes"."""
 from __future__ import annotations
 
 import numpy as np
@@ -13,7 +16,8 @@ from clrender.device import limits
 from clrender.errors import DeviceMemoryError
 from clrender.passes.base import Overflow, RenderPass, empty, round_up, scan_for, zeros
 from clrender.passes.forward import (
-    FORWARD_INPUTS, LAYER_PLANES, forward_args, forward_defines, forward_grid, forward_vec, layered_kernel)
+    FORWARD_INPUTS, LAYER_PLANES, TX_PLANES, forward_args, forward_defines, forward_grid, forward_vec,
+    scene_transmissive, transmissive, tx_args, variant_kernel)
 from clrender.passes.fragments import walk_args, walk_global_size
 
 SORT_GROUP = (8, 8)
@@ -34,8 +38,11 @@ class AbufferPass(RenderPass):
     @classmethod
     def buffer_bytes(cls, width, height, config, scene=None):
         px = width * height
-        return {"abuffer.offsets+layers": 32 * px,
-                "abuffer.frag_depth+frag_prim": 8 * 2 * px}      # initial capacity: 2 fragments per pixel
+        out = {"abuffer.offsets+layers": 32 * px,
+               "abuffer.frag_depth+frag_prim": 8 * 2 * px}      # initial capacity: 2 fragments per pixel
+        if scene_transmissive(scene):
+            out["abuffer.tx_planes"] = 4 * TX_PLANES * px
+        return out
 
     def __init__(self, device, config, fragments):
         super().__init__(device, config)
@@ -53,6 +60,7 @@ class AbufferPass(RenderPass):
         n = width * height
         self.offsets = empty(self.queue, n, np.int32)
         self.layers = empty(self.queue, LAYER_PLANES * n, np.float32)
+        self.tx_planes = None               # made at the first transmissive frame of this size
         if self.capacity < 2 * n:
             self._allocate_fragments(2 * n)
 
@@ -64,6 +72,10 @@ class AbufferPass(RenderPass):
 
     def publish(self, res):
         res.buffers["layers"] = self.layers
+        if transmissive(res):
+            if self.tx_planes is None:
+                self.tx_planes = empty(self.queue, TX_PLANES * self.offsets.size, np.float32)
+            res.buffers["tx_planes"] = self.tx_planes
 
     def run(self, res):
         w, h = res["width"], res["height"]
@@ -81,10 +93,10 @@ class AbufferPass(RenderPass):
                              res["frag_list_len"].data, self.offsets.data, np.int32(self.capacity),
                              np.int32(w), np.int32(h), self.frag_depth.data, self.frag_prim.data)
         with self.timed("resolve"):
-            layered_kernel(self, "resolve_kernel", res)(self.queue, *forward_grid(w, h, self.vec),
+            variant_kernel(self, "resolve_kernel", res)(self.queue, *forward_grid(w, h, self.vec),
                                 res["frag_list_len"].data, self.offsets.data, np.int32(self.capacity),
                                 self.frag_depth.data, self.frag_prim.data, *forward_args(res, res["t_prims"]),
-                                self.layers.data)
+                                self.layers.data, *tx_args(res))
 
     def overflows(self):
         self._check_total()

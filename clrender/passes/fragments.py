@@ -15,9 +15,10 @@ from clrender.passes.binning import BinningPass
 from clrender.passes.setup import SetupPass, per_triangle_bytes
 
 
-def transparent_triangle_count(scene) -> int:
-    """Triangles with a BLEND material (they skip the G-buffer: docs/transparency.md)."""
-    blend = np.array([m.alpha_mode == "BLEND" for m in scene.materials] or [False])
+def transparent_triangle_count(scene, blend_only: bool = False) -> int:
+    """Triangles with a BLEND or transmissive material (Material.see_through: they skip the G-buffer,
+    docs/transparency.md); blend_only: BLEND ones (shading="blinn_phong" has no transmission)."""
+    blend = np.array([m.alpha_mode == "BLEND" if blend_only else m.see_through for m in scene.materials] or [False])
     return int(np.count_nonzero(blend[scene.triangle_material])) if scene.triangle_count else 0
 
 

@@ -167,11 +167,25 @@ class Frame:
         return self.triangle_id < 0
 
     @cached_property
+    def _transmission_depth(self) -> Optional[np.ndarray]:
+        """(H, W) float32 view depth of the nearest transmissive surface where it is the pixel's
+        nearest fragment, -1 elsewhere; None for a frame without transmissive materials."""
+        if "transmission_depth" not in self.readback.names():
+            return None
+        return self.readback.get("transmission_depth")
+
+    @cached_property
     def depth(self) -> np.ndarray:
         """(H, W) float32 z-depth along the camera's optical axis (what OpenCV depth maps store; not
-        the distance to the eye), +inf on background; `linear_depth` is depth / far."""
-        d = self._decode("linear_depth") * np.float32(self.far)
-        return d.astype(np.float32)
+        the distance to the eye), +inf on background; `linear_depth` is depth / far. Where a
+        transmissive surface (KHR_materials_transmission) is the pixel's nearest transparent fragment
+        in front of the opaque surface, the depth is that surface's (the sample object_id takes, at
+        the same internal resolution): a glass pane has the pane's depth, like a depth sensor seeing
+        a solid. BLEND fragments keep the opaque depth, and `linear_depth`, `normal` and the other
+        G-buffer AOVs stay the opaque surface's."""
+        d = (self._decode("linear_depth") * np.float32(self.far)).astype(np.float32)
+        tx = self._transmission_depth
+        return d if tx is None else np.where(tx >= 0, tx, d).astype(np.float32)
 
     @cached_property
     def normal(self) -> np.ndarray:
@@ -192,8 +206,8 @@ class Frame:
 
     @cached_property
     def _surface_triangle(self) -> np.ndarray:
-        """The nearest surface's triangle: the nearest transparent (BLEND) fragment where the A-buffer
-        or depth peeling found one in front of the opaque surface, else triangle_id."""
+        """The nearest surface's triangle: the nearest transparent (BLEND or transmissive) fragment where
+        the A-buffer or depth peeling found one in front of the opaque surface, else triangle_id."""
         tri = self.triangle_id
         if "nearest_triangle" not in self.readback.names():
             return tri
@@ -241,7 +255,10 @@ class Frame:
         right, up, back = cam.basis()
         x = ((np.arange(w) + 0.5) * (2.0 / w) - 1.0 - ox) * tan_x            # lateral offsets of the pixel
         y = (1.0 - (np.arange(h) + 0.5) * (2.0 / h) - oy) * tan_y            # centres, per unit depth
-        depth = np.where(self._background, np.nan, self.depth.astype(np.float64))
+        background = self._background
+        if self._transmission_depth is not None:          # a transmissive surface over the background
+            background = background & (self._transmission_depth < 0)
+        depth = np.where(background, np.nan, self.depth.astype(np.float64))
         out = np.empty((h, w, 3), np.float32)
         for c in range(3):             # one (H, W) float64 plane at a time: a third of the memory traffic
             ray_x, ray_y = x * right[c], (y * up[c])[:, None]

@@ -32,7 +32,7 @@ def estimate(width: int, height: int, config, scene=None) -> dict:
     k = getattr(config, "supersample", 1)
     out_w, out_h = int(width), int(height)
     width, height = k * out_w, k * out_h
-    blend = scene is not None and any(m.alpha_mode == "BLEND" for m in scene.materials)
+    blend = scene is not None and any(m.see_through for m in scene.materials)    # BLEND or transmissive
     buffers = {"pipeline.constants": 4 * 64 + 8 * layout.SRGB_ENCODE_INTERVALS}   # matrices, sRGB encoder
     for cls in plan.pass_classes(config):
         where = plan.stage(cls)

@@ -3,7 +3,7 @@
 Each pass answers `runs(config)` itself (clrender/passes/base.py); this table only orders them.
 The Pipeline builds exactly these passes, and memory.estimate() sums their `buffer_bytes`, so the
 two cannot drift apart. Stages: "internal" (k·W × k·H before the resolve), "transparency" (also
-internal, allocated only for a scene with BLEND triangles), "output" (W × H: resolve and post).
+internal, allocated only for a scene with BLEND or transmissive triangles), "output" (W × H: resolve and post).
 """
 from __future__ import annotations
 
@@ -37,21 +37,22 @@ from clrender.passes.ssao import SsaoPass
 from clrender.passes.ssao_blur import SsaoBlurPass
 from clrender.passes.surface_layers import SurfaceLayersPass
 from clrender.passes.tonemap import TonemapPass
+from clrender.passes.transmission import TransmissionPass
 
 # The frame's order (docs/variants.md, docs/post.md): geometry, the transparent fragments' walk,
 # light lists, SSAO, shadow maps, the environment, the lighting variant (deferred: shade;
 # light_prepass: light buffer, geometry again, material; light_indexed: geometry again, forward
-# shade), the surface layers of the materials that have them, the transparency resolve and
-# composite, then at the output size the resolve of over-sampling and the post chain (HDR
-# effects, tone map, LDR effects, encode).
+# shade), the surface layers of the materials that have them, the opaque colour's mip chain for
+# transmissive materials, the transparency resolve and composite, then at the output size the
+# resolve of over-sampling and the post chain (HDR effects, tone map, LDR effects, encode).
 ORDER = (
     SetupPass, BinningPass, RasterPass, GBufferPass, ParticlesPass, FragmentsPass,
     LightCullPass, LightStencilPass, LightQuadsPass, SsaoPass, SsaoBlurPass, ShadowPass, IblPass,
     ShadePass, LightBufferPass, RasterAgainPass, SampleGeometryPass, MaterialPass, ForwardShadePass, SurfaceLayersPass,
-    AbufferPass, PeelPass, CompositePass,
+    TransmissionPass, AbufferPass, PeelPass, CompositePass,
     ResolvePass, BloomPass, MotionBlurPass, TonemapPass, EdgeAaPass, FxaaPass, HatchingPass, EncodePass,
 )
-TRANSPARENCY = (FragmentsPass, AbufferPass, PeelPass, CompositePass)
+TRANSPARENCY = (FragmentsPass, TransmissionPass, AbufferPass, PeelPass, CompositePass)
 OUTPUT = (ResolvePass, BloomPass, MotionBlurPass, TonemapPass, EdgeAaPass, FxaaPass, HatchingPass, EncodePass)
 
 

@@ -273,6 +273,8 @@ def frame_readback(queue, pool, config, res, width: int, height: int, transparen
         rb.add(aov.name, array[first * px: (first + planes) * px], finish)
     if transparent:       # the nearest transparent fragment's triangle (Frame.object_id, material_id)
         rb.add("nearest_triangle", res["layers"][6 * n: 7 * n], lambda a: internal()(a).view(np.int32))
+    if transparent and "tx_planes" in res.buffers:     # the nearest transmissive surface's view depth (Frame.depth)
+        rb.add("transmission_depth", res["tx_planes"][8 * n: 9 * n], internal())
     if config.ldr_effects:            # the final LDR planes the image was encoded from (Frame.ldr)
         rb.add("ldr", res["ldr"][: 3 * out_px],
                lambda a: np.ascontiguousarray(np.moveaxis(a.reshape(3, height, width), 0, -1)))

@@ -139,6 +139,11 @@ class Renderer:
             scene_res.buffers["materials"] = scene_res.buffers["materials_blinn_phong"]
             scene_res.values["gltf_scene"] = 0
             scene_res.values["lights"] = scene_res.values["lights_blinn_phong"]
+            if scene_res["transmissive_materials"]:     # transmission is a glTF-BRDF feature: only BLEND is see-through
+                from clrender.passes.fragments import transparent_triangle_count
+                scene_res.values["transmissive_materials"] = 0
+                scene_res.values.pop("transmission_args", None)
+                scene_res.values["n_transparent_tris"] = transparent_triangle_count(scene, blend_only=True)
         elif self.config.multiscatter and scene_res["gltf_scene"]:   # every glTF material through the layers pass
             from clrender.render.scene_upload import multiscatter_buffers
             ms = multiscatter_buffers(scene, self.device)

@@ -94,20 +94,31 @@ def material_records(scene: Scene, slot_textures: list | None = None) -> np.ndar
         for k, slot in enumerate(TEXTURE_SLOTS[1:]):
             flags |= (structs.MAT_SHARES_FIRST << k) if shares_base_footprint(scene, m, slot) else 0
         color = m.base_color[:3] + (m.base_color[3] * m.opacity,)     # opacity folds into alpha
+        door = 1.0
+        if m.transmissive:      # the transparent-fragment path, shaded with its MaterialTx (tx_records)
+            flags |= structs.MAT_BLEND | structs.MAT_TRANSMISSION
+            flags |= structs.MAT_TX_ALPHA if m.alpha_mode == "BLEND" else 0    # else alpha is not coverage
+            door = 1.0 - m.transmission * (1.0 - m.metallic)      # screen door: what is not let through
         tex = slot_textures[i] if slot_textures is not None else {s: getattr(m, f"{s}_texture") for s in TEXTURE_SLOTS}
         slots = [_slot_record(tex[s], getattr(m, f"{s}_uv")) for s in TEXTURE_SLOTS]
         out[i] = (color, m.emissive, m.emissive_strength, m.specular_intensity, m.specular_power,
                   0.0 if m.metallic is None else m.metallic, m.roughness, m.normal_scale, m.occlusion_strength,
-                  m.alpha_cutoff, flags, m.refraction, -1, (0, 0), slots)
+                  m.alpha_cutoff, flags, m.refraction, -1, -1, door, slots)
     return out
 
 
-def blinn_phong_records(records: np.ndarray) -> np.ndarray:
+def blinn_phong_records(records: np.ndarray, materials: list) -> np.ndarray:
     """The material records with no glTF-BRDF flag: the metallic-roughness mapping onto the
-    report's Blinn-Phong terms (kernels/material_eval.h) shades everything, layers included."""
+    report's Blinn-Phong terms (kernels/material_eval.h) shades everything, layers included.
+    Transmission is a glTF-BRDF feature: a transmissive material (`materials`: the scene's) is
+    opaque here unless its alpha mode is BLEND."""
     out = records.copy()
-    out["flags"] &= np.uint32(~structs.MAT_GLTF_BRDF & 0xFFFFFFFF)
-    out["ext"] = -1
+    out["flags"] &= np.uint32(~structs.MAT_GLTF_BRDF & ~structs.MAT_TRANSMISSION & ~structs.MAT_TX_ALPHA & 0xFFFFFFFF)
+    for i, m in enumerate(materials):
+        if m.transmissive and m.alpha_mode != "BLEND":
+            out["flags"][i] &= np.uint32(~structs.MAT_BLEND & 0xFFFFFFFF)
+    out["ext"] = out["tx"] = -1
+    out["door_alpha"] = 1.0
     return out
 
 
@@ -132,8 +143,45 @@ def layer_records(scene: Scene, records: np.ndarray) -> np.ndarray:
         rows.append((m.specular_color, m.specular_factor, m.ior, m.clearcoat, m.clearcoat_roughness,
                      m.clearcoat_normal_scale, m.sheen_color, m.sheen_roughness, m.iridescence, m.iridescence_ior,
                      m.iridescence_thickness_min, m.iridescence_thickness_max, m.anisotropy_strength,
-                     np.cos(m.anisotropy_rotation), np.sin(m.anisotropy_rotation), bits, (0, 0, 0, 0), slots))
+                     np.cos(m.anisotropy_rotation), np.sin(m.anisotropy_rotation), bits, m.diffuse_transmission,
+                     m.diffuse_transmission_color, slots))
     return np.array(rows, structs.material_ext_dtype)
+
+
+def tx_records(scene: Scene, records: np.ndarray) -> np.ndarray:
+    """MaterialTx[] of the transmissive materials (kernels/structs.h), and each one's index set in
+    `records["tx"]` (-1 elsewhere). Thickness and dispersion are 0 (thin-walled, no dispersion, no
+    thickness texture read) unless the material has a volume; an infinite attenuation distance
+    stays +inf. A scene without transmissive materials gets no record: nothing is uploaded or built."""
+    from clrender.scene.material import TX_TEXTURE_SLOTS
+    rows = []
+    for i, m in enumerate(scene.materials):
+        if not m.transmissive:
+            continue
+        records["tx"][i] = len(rows)
+        volume = m.has_volume
+        slots = [_slot_record(getattr(m, f"{s}_texture") if (volume or s != "thickness") else -1,
+                              getattr(m, f"{s}_uv")) for s in TX_TEXTURE_SLOTS]
+        rows.append((m.transmission, m.thickness if volume else 0.0, m.attenuation_distance,
+                     m.dispersion if volume else 0.0, m.attenuation_color, m.ior, m.specular_color,
+                     m.specular_factor, slots))
+    return np.array(rows, structs.material_tx_dtype)
+
+
+def triangle_volume_scales(scene: Scene) -> np.ndarray:
+    """float32[T]: each triangle's object's volume_scale (KHR_materials_volume: the node's scale
+    applies to the thickness) when a material has a volume; else [1.0] (never read)."""
+    scales = _volume_scales(scene)
+    if not scales:
+        return np.ones(1, np.float32)
+    return np.asarray(scales, np.float32)[scene.triangle_object]
+
+
+def _volume_scales(scene: Scene) -> tuple:
+    """The objects' volume scales when a material has a volume (what tri_volume_scale reads), else ()."""
+    if not any(m.has_volume for m in scene.materials):
+        return ()
+    return tuple(getattr(o, "volume_scale", 1.0) for o in scene.objects)    # validate() rejects non-objects
 
 
 def multiscatter_buffers(scene: Scene, device) -> dict:
@@ -150,6 +198,7 @@ def multiscatter_buffers(scene: Scene, device) -> dict:
         plain = np.zeros(len(extra), structs.material_ext_dtype)
         plain["specular_color"], plain["specular_factor"], plain["ior"] = 1.0, 1.0, 1.5
         plain["iridescence_ior"], plain["iridescence_thickness_max"], plain["anisotropy_cos"] = 1.3, 400.0, 1.0
+        plain["diffuse_transmission_color"] = 1.0
         plain["slots"]["texture"] = -1
         materials["ext"][extra] = len(layered) + np.arange(len(extra))
         records = np.concatenate([layered, plain]) if len(extra) else layered
@@ -197,7 +246,8 @@ _DTYPES = {"positions": np.float32, "normals": np.float32, "tangents": np.float3
 
 def _fingerprint(scene: Scene) -> tuple:
     arrays = tuple(getattr(scene, name) for name in _ARRAYS)
-    return arrays, tuple(np.shape(a) for a in arrays), tuple(scene.materials), tuple(scene.textures)
+    return (arrays, tuple(np.shape(a) for a in arrays), tuple(scene.materials), tuple(scene.textures),
+            _volume_scales(scene))
 
 
 def _identical(xs, ys) -> bool:
@@ -207,7 +257,8 @@ def _identical(xs, ys) -> bool:
 
 def _same(a: tuple, b: tuple) -> bool:
     """Fingerprints of the same objects (compared by identity) and shapes."""
-    return a[1] == b[1] and _identical(a[0], b[0]) and _identical(a[2], b[2]) and _identical(a[3], b[3])
+    return (a[1] == b[1] and _identical(a[0], b[0]) and _identical(a[2], b[2]) and _identical(a[3], b[3])
+            and a[4] == b[4])
 
 
 _UPLOADS: dict = {}
@@ -314,6 +365,7 @@ def upload(scene: Scene, device) -> Resources:
 
     textures, materials = device_materials(scene)
     layers = layer_records(scene, materials)          # sets materials["ext"]
+    tx = tx_records(scene, materials)                 # sets materials["tx"]
     uvs = scene.uvs if scene.extra_uvs is None else np.concatenate([scene.uvs[None], scene.extra_uvs])
     tangents = vertex_tangents(scene)
     res = Resources(buffers={
@@ -326,14 +378,19 @@ def upload(scene: Scene, device) -> Resources:
         "tri_material": put(scene.triangle_material, np.int32),
         "materials": cla.to_device(q, materials),
         # RenderConfig.shading = "blinn_phong": every material through the report's model
-        "materials_blinn_phong": cla.to_device(q, blinn_phong_records(materials)),
+        "materials_blinn_phong": cla.to_device(q, blinn_phong_records(materials, scene.materials)),
         **upload_pool(device, textures),             # texels, tex_infos, tex_levels, srgb_lut
         **({"material_ext": cla.to_device(q, layers)} if len(layers) else {}),
     }, values={"n_tris": scene.triangle_count, "scene_bounds": scene.bounds(),   # bounds: sun shadow fit
                "layered_materials": len(layers), "has_tangents": int(tangents is not None),
                "n_transparent_tris": transparent_triangle_count(scene), "n_vertices": len(scene.positions),
                "has_colors": int(scene.colors is not None), "surface_extras": int(surface_extras(scene)),
-               "gltf_scene": int(np.any(materials["flags"] & structs.MAT_GLTF_BRDF))})
+               "gltf_scene": int(np.any(materials["flags"] & structs.MAT_GLTF_BRDF)),
+               "transmissive_materials": len(tx)})
+    if len(tx):                                  # see-through materials (clrender/passes/transmission.py)
+        res.buffers["material_tx"] = cla.to_device(q, tx)
+        res.buffers["tri_volume_scale"] = cla.to_device(q, triangle_volume_scales(scene))
+        _transmission_args(res)
     if scene.previous_positions is not None:     # objects moved (Scene.set_transform): the G-buffer's velocity
         res.buffers["prev_positions"] = put(scene.previous_positions, np.float32)
     _UPLOADS[key] = (weakref.ref(scene), fingerprint, res)
@@ -341,12 +398,17 @@ def upload(scene: Scene, device) -> Resources:
     return res
 
 
+def _transmission_args(res: Resources) -> None:
+    res.values["transmission_args"] = (res.buffers["material_tx"].data, res.buffers["tri_volume_scale"].data)
+
+
 def _update(scene: Scene, device, old: tuple, new: tuple, res: Resources) -> bool:
     """Between animation frames: when only posed geometry (_POSED) was replaced, by arrays of the
     same shapes (previous_positions may also appear or disappear), and uvs, colors, materials,
     textures... are the same objects, write the replaced arrays into the existing device buffers and
     update the values derived from them; False (nothing done) when a full upload is needed. Checks
-    what Scene.validate() checks of the replaced arrays. A rewritten buffer gets a new Array object
+    what Scene.validate() checks of the replaced arrays. Objects' changed volume scales (same objects
+    count) rewrite tri_volume_scale. A rewritten buffer gets a new Array object
     over the same device memory, so caches keyed by buffer identity (the shadow pass's kept maps)
     see the change as they see a full upload's new buffers."""
     changed = []
@@ -359,6 +421,8 @@ def _update(scene: Scene, device, old: tuple, new: tuple, res: Resources) -> boo
             return False
         changed.append(name)
     if not (_identical(old[2], new[2]) and _identical(old[3], new[3])):     # materials, textures
+        return False
+    if len(old[4]) != len(new[4]):          # objects added or removed
         return False
     where, nv = scene.source, len(scene.positions)
     if "triangles" in changed and scene.triangle_count and (scene.triangles.min() < 0
@@ -395,5 +459,10 @@ def _update(scene: Scene, device, old: tuple, new: tuple, res: Resources) -> boo
             res.buffers[buffer] = current.view()
     if {"positions", "triangles"} & set(changed):
         res.values["scene_bounds"] = scene.bounds()
+    if old[4] != new[4]:                    # an object's volume scale changed (materials are the same)
+        current = res.buffers["tri_volume_scale"]
+        current.set(triangle_volume_scales(scene), queue=q)
+        res.buffers["tri_volume_scale"] = current.view()
+        _transmission_args(res)
     return True
 

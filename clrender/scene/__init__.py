@@ -7,7 +7,7 @@ from clrender._lazy import exports
 
 __all__, __getattr__, __dir__ = exports(__name__, {
     "model": ("Scene", "SceneObject", "Material", "Texture", "UVTransform", "Sun", "SceneError", "ALPHA_MODES", "TEXTURE_SLOTS", "SHADOW_MAP_SIZES",),
-    "material": ("EXT_TEXTURE_SLOTS",),
+    "material": ("EXT_TEXTURE_SLOTS", "TX_TEXTURE_SLOTS"),
     "camera": ("Camera",),
     "environment": ("Environment", "STUDIO", "load_environment", "studio_environment",),
     "deform": ("Deformer", "Deformation", "Skin",),

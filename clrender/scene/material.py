@@ -17,10 +17,14 @@ from clrender.errors import SceneError
 ALPHA_MODES = ("OPAQUE", "MASK", "BLEND")
 TEXTURE_SLOTS = ("base_color", "metallic_roughness", "normal", "occlusion", "emissive")
 # the surface extensions' texture slots (KHR_materials_specular, _clearcoat, _sheen, _iridescence,
-# _anisotropy), in MaterialExt order; sRGB: specular_color and sheen_color, the others linear
+# _anisotropy, _diffuse_transmission), in MaterialExt order; sRGB: specular_color, sheen_color and
+# diffuse_transmission_color, the others linear
 EXT_TEXTURE_SLOTS = ("specular", "specular_color", "clearcoat", "clearcoat_roughness", "clearcoat_normal",
-                     "sheen_color", "sheen_roughness", "iridescence", "iridescence_thickness", "anisotropy")
-LAYERS = ("specular", "clearcoat", "sheen", "iridescence", "anisotropy")
+                     "sheen_color", "sheen_roughness", "iridescence", "iridescence_thickness", "anisotropy",
+                     "diffuse_transmission", "diffuse_transmission_color")
+# KHR_materials_transmission's and _volume's texture slots, in MaterialTx order (both linear)
+TX_TEXTURE_SLOTS = ("transmission", "thickness")
+LAYERS = ("specular", "clearcoat", "sheen", "iridescence", "anisotropy", "diffuse_transmission")
 
 
 @dataclass(frozen=True)
@@ -127,6 +131,22 @@ class Material:
     iridescence_uv: UVTransform = UVTransform()
     iridescence_thickness_uv: UVTransform = UVTransform()
     anisotropy_uv: UVTransform = UVTransform()
+    # see-through extensions (docs/transmission.md; defaults: the extension absent)
+    transmission: float = 0.0             # KHR_materials_transmission, [0, 1]; texture R multiplies
+    transmission_texture: int = -1
+    thickness: float = 0.0                # KHR_materials_volume, mesh units, >= 0 (0: thin-walled); texture G
+    thickness_texture: int = -1           #   multiplies; the node's scale applies (SceneObject.volume_scale)
+    attenuation_distance: float = np.inf  # world units, > 0 (inf: no attenuation)
+    attenuation_color: tuple = (1.0, 1.0, 1.0)   # linear [0, 1]
+    dispersion: float = 0.0               # KHR_materials_dispersion, >= 0 (20 / Abbe number)
+    diffuse_transmission: float = 0.0     # KHR_materials_diffuse_transmission, [0, 1]; texture A multiplies
+    diffuse_transmission_texture: int = -1
+    diffuse_transmission_color: tuple = (1.0, 1.0, 1.0)  # linear [0, 1]; texture RGB (sRGB) multiplies
+    diffuse_transmission_color_texture: int = -1
+    transmission_uv: UVTransform = UVTransform()
+    thickness_uv: UVTransform = UVTransform()
+    diffuse_transmission_uv: UVTransform = UVTransform()
+    diffuse_transmission_color_uv: UVTransform = UVTransform()
 
     def __post_init__(self):
         if self.alpha_mode not in ALPHA_MODES:
@@ -137,7 +157,9 @@ class Material:
                   ("clearcoat_roughness", 0.0, 1.0), ("clearcoat_normal_scale", -np.inf, np.inf),
                   ("sheen_roughness", 0.0, 1.0), ("iridescence", 0.0, 1.0), ("iridescence_ior", 1.0, np.inf),
                   ("iridescence_thickness_min", 0.0, np.inf), ("iridescence_thickness_max", 0.0, np.inf),
-                  ("anisotropy_strength", 0.0, 1.0), ("anisotropy_rotation", -np.inf, np.inf))
+                  ("anisotropy_strength", 0.0, 1.0), ("anisotropy_rotation", -np.inf, np.inf),
+                  ("transmission", 0.0, 1.0), ("thickness", 0.0, np.inf), ("dispersion", 0.0, np.inf),
+                  ("diffuse_transmission", 0.0, 1.0))
         ranges += (("metallic", 0.0, 1.0),) if self.metallic is not None else ()
         for name, lo, hi in ranges:
             v = getattr(self, name)
@@ -153,6 +175,12 @@ class Material:
                 and np.isfinite(v) and (float(v) >= 1.0 or float(v) == 0.0)):
             raise SceneError(f"material {self.name!r}: ior must be a finite number >= 1 or exactly 0, got {v!r}")
         object.__setattr__(self, "ior", float(v))
+        v = self.attenuation_distance   # KHR_materials_volume: > 0, +inf (the default) = no attenuation
+        if not (isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, bool)
+                and float(v) > 0.0 and not np.isnan(v)):
+            raise SceneError(f"material {self.name!r}: attenuation_distance must be a number > 0 (inf: no "
+                             f"attenuation), got {v!r}")
+        object.__setattr__(self, "attenuation_distance", float(v))
         if self.opacity < 1.0:
             if self.alpha_mode == "MASK":
                 raise SceneError(f"material {self.name!r}: opacity {self.opacity} < 1 needs alpha_mode OPAQUE or BLEND, "
@@ -166,14 +194,15 @@ class Material:
             raise SceneError(f"material {self.name!r}: emissive must be 3 numbers in [0, 1] "
                              f"(emissive_strength scales it), got {self.emissive!r}")
         object.__setattr__(self, "emissive", tuple(float(c) for c in e))
-        for name, hi in (("specular_color", np.inf), ("sheen_color", 1.0)):
+        for name, hi in (("specular_color", np.inf), ("sheen_color", 1.0), ("attenuation_color", 1.0),
+                         ("diffuse_transmission_color", 1.0)):
             c = getattr(self, name)
             c = np.asarray(c, np.float64).reshape(-1) if not isinstance(c, str) else np.zeros(0)
             if c.shape != (3,) or not np.isfinite(c).all() or (c < 0).any() or (c > hi).any():
                 raise SceneError(f"material {self.name!r}: {name} must be 3 finite numbers in [0, {hi}], "
                                  f"got {getattr(self, name)!r}")
             object.__setattr__(self, name, tuple(float(x) for x in c))
-        for slot in TEXTURE_SLOTS + EXT_TEXTURE_SLOTS:
+        for slot in TEXTURE_SLOTS + EXT_TEXTURE_SLOTS + TX_TEXTURE_SLOTS:
             t = getattr(self, f"{slot}_texture")
             if not (isinstance(t, (int, np.integer)) and not isinstance(t, bool) and t >= -1):
                 raise SceneError(f"material {self.name!r}: {slot}_texture must be a texture index or -1, got {t!r}")
@@ -199,6 +228,28 @@ class Material:
         return {s: (getattr(self, f"{s}_texture"), getattr(self, f"{s}_uv")) for s in EXT_TEXTURE_SLOTS
                 if getattr(self, f"{s}_texture") >= 0}
 
+    def tx_textures_used(self) -> dict:
+        """{slot: (texture index, UVTransform)} of the transmission and volume slots (TX_TEXTURE_SLOTS)
+        with a texture."""
+        return {s: (getattr(self, f"{s}_texture"), getattr(self, f"{s}_uv")) for s in TX_TEXTURE_SLOTS
+                if getattr(self, f"{s}_texture") >= 0}
+
+    @property
+    def transmissive(self) -> bool:
+        """KHR_materials_transmission applies: a glTF-BRDF material, not unlit, transmission > 0 (a
+        texture only multiplies the factor). Such triangles take the transparent-fragment path."""
+        return self.metallic is not None and not self.unlit and self.transmission > 0
+
+    @property
+    def see_through(self) -> bool:
+        """Drawn on the transparent-fragment path (not the G-buffer): alpha BLEND, or transmissive."""
+        return self.alpha_mode == "BLEND" or self.transmissive
+
+    @property
+    def has_volume(self) -> bool:
+        """Transmissive with a volume (thickness > 0: refraction, attenuation, dispersion); else thin-walled."""
+        return self.transmissive and self.thickness > 0
+
     @property
     def layers(self) -> frozenset:
         """The surface-extension layers this material shades with (a subset of LAYERS). Empty for the
@@ -209,7 +260,8 @@ class Material:
         on = {"specular": (self.ior != 1.5 or self.specular_factor != 1.0 or self.specular_color != (1.0, 1.0, 1.0)
                            or self.specular_texture >= 0 or self.specular_color_texture >= 0),
               "clearcoat": self.clearcoat > 0, "sheen": max(self.sheen_color) > 0,
-              "iridescence": self.iridescence > 0, "anisotropy": self.anisotropy_strength > 0}
+              "iridescence": self.iridescence > 0, "anisotropy": self.anisotropy_strength > 0,
+              "diffuse_transmission": self.diffuse_transmission > 0}
         return frozenset(k for k in LAYERS if on[k])
 
     @staticmethod

@@ -114,12 +114,22 @@ class SceneObject:
     of the `mesh` it draws, its `path` from the root ("parent/child" node names for glTF; past 63
     levels the middle is shortened to "...<k nodes>...", see loaders/gltf/assemble.py PATH_HEAD) and its
     `extras`: the glTF node's (any JSON value: semantic labels travel here) or the TOML entry's
-    `extras` table; None elsewhere."""
+    `extras` table; None elsewhere. `volume_scale`: how its transform scales lengths, |det M|^(1/3) of
+    its world matrix's 3x3 (glTF: KHR_materials_volume's thickness is in mesh units and the node's
+    transform applies to it); 1 where the loader does not know it."""
     name: str
     mesh: str
     path: str
     extras: object = None
     node: Optional[int] = None          # glTF node index
+    volume_scale: float = 1.0
+
+    def __post_init__(self):
+        v = self.volume_scale
+        if not (isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, bool)
+                and np.isfinite(v) and v > 0):
+            raise SceneError(f"object {self.name!r}: volume_scale must be a finite number > 0, got {v!r}")
+        object.__setattr__(self, "volume_scale", float(v))
 
 
 @dataclass
@@ -436,7 +446,7 @@ class Scene(SceneMotion):
         if self.extra_uvs is not None and np.shape(self.extra_uvs) != (k, nv, 2):
             raise SceneError(f"{where}: extra_uvs must have shape (K, {nv}, 2), got {np.shape(self.extra_uvs)}")
         for m in self.materials:
-            for slot, (tex, uv) in {**m.textures_used(), **m.layer_textures_used()}.items():
+            for slot, (tex, uv) in {**m.textures_used(), **m.layer_textures_used(), **m.tx_textures_used()}.items():
                 if not tex < len(self.textures):
                     raise SceneError(f"{where}: material {m.name!r} references missing texture {tex} ({slot})")
                 if uv.texcoord >= self.uv_set_count:
@@ -455,7 +465,7 @@ class Scene(SceneMotion):
             "textures": len(self.textures),
             "texture_sizes": [list(t.rgba.shape[1::-1]) for t in self.textures],
             "alpha_masked_materials": sum(m.alpha_mode == "MASK" for m in self.materials),
-            "transparent_materials": sum(m.alpha_mode == "BLEND" for m in self.materials),
+            "transparent_materials": sum(m.see_through for m in self.materials),   # BLEND or transmissive
             "single_sided_materials": sum(not m.double_sided for m in self.materials),
             "bounds_min": lo.tolist(),
             "bounds_max": hi.tolist(),

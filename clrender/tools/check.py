@@ -215,6 +215,11 @@ def default_cases(width: int, height: int) -> list[tuple[str, Scene, Camera]]:
     # shadowed spot and the environment (kernels/surface_layers.cl, its sheen table), and a
     # transparent layered material (forward.h's SURFACE_LAYERS build).
     cases.append(("layers", _layers_case(rng), Camera.look_at((0, 0.5, 1.5), (0, 0, -3), near=0.1, far=50)))
+    # See-through glTF materials (docs/transmission.md): thin, volume (attenuation, dispersion, roughness: the
+    # mip chain), textured transmission and thickness, a transmissive BLEND film and a BLEND strip, lit and
+    # under the environment (the TRANSMISSION variants of forward.h, abuffer.cl and composite.cl).
+    cases.append(("transmission", _transmission_case(rng), Camera.look_at((0, 0.5, 1.5), (0, 0, -3), near=0.1,
+                                                                          far=50)))
     # Skins, morph targets and animated weights posed by the device (kernels/pose.cl), with the
     # velocity of the two poses.
     worm = REPO_SCENES / "worm.gltf"
@@ -286,6 +291,70 @@ def _layers_case(rng) -> Scene:
     scene.triangle_material = np.where(np.arange(len(scene.triangle_material)) % 5 == 1, 2,
                                        scene.triangle_material).astype(np.int32)
     scene.set_environment(_check_environment(rng), intensity=0.8, rotation_deg=25.0)
+    return scene
+
+
+def _transmission_case(rng) -> Scene:
+    """A textured glTF backdrop behind see-through materials: a thin glass pane, a rough dispersive
+    volume box with attenuation (its object scaled: SceneObject.volume_scale), a transmissive BLEND film
+    with transmission and thickness textures, a BLEND strip; random lights, a shadowed spot, the environment."""
+    from clrender.scene.model import Material, SceneObject, Texture
+    quad_uv = np.array([[0, 1], [1, 1], [1, 0], [0, 1], [1, 0], [0, 0]], np.float64)
+    tris, uvs, mats, meshes = [], [], [], []
+
+    def add(verts, uv, material, mesh):
+        tris.append(np.asarray(verts, np.float64).reshape(-1, 3, 3))
+        uvs.append(np.asarray(uv, np.float64).reshape(-1, 3, 2))
+        mats.append(np.full(len(tris[-1]), material))
+        meshes.append(np.full(len(tris[-1]), mesh))
+
+    def quad(x0, x1, y0, y1, z, turn=0.0):
+        c, s = np.cos(turn), np.sin(turn)
+        cx = 0.5 * (x0 + x1)
+        p = np.array([[x0, y0], [x1, y0], [x1, y1], [x0, y0], [x1, y1], [x0, y1]], np.float64)
+        return np.stack([cx + (p[:, 0] - cx) * c, p[:, 1], z - (p[:, 0] - cx) * s], -1)
+
+    n = 8                                    # the backdrop: a wavy textured grid over the view
+    u, v = np.meshgrid(np.linspace(0, 1, n + 1), np.linspace(0, 1, n + 1))
+    grid = np.stack([u * 16 - 8, v * 10 - 5, -6 + 0.4 * np.sin(6 * u)], -1)
+    cells = [(i, j) for i in range(n) for j in range(n)]
+    add([[grid[j, i], grid[j, i + 1], grid[j + 1, i + 1], grid[j, i], grid[j + 1, i + 1], grid[j + 1, i]]
+         for i, j in cells], [[(u[j, i], v[j, i]), (u[j, i + 1], v[j, i + 1]), (u[j + 1, i + 1], v[j + 1, i + 1]),
+                               (u[j, i], v[j, i]), (u[j + 1, i + 1], v[j + 1, i + 1]), (u[j + 1, i], v[j + 1, i])]
+                              for i, j in cells], 0, 0)
+    add(quad(-2.2, -0.4, -1.0, 1.0, -2.5, 0.5), quad_uv, 1, 1)              # thin glass
+    corners = np.array([[x, y, z] for x in (-0.7, 0.7) for y in (-0.9, 0.9) for z in (-0.5, 0.5)])
+    box_faces = [[0, 1, 3], [0, 3, 2], [4, 6, 7], [4, 7, 5], [0, 4, 5], [0, 5, 1], [2, 3, 7], [2, 7, 6],
+                 [0, 2, 6], [0, 6, 4], [1, 5, 7], [1, 7, 3]]
+    t = np.radians(30.0)
+    rot = np.array([[np.cos(t), 0, np.sin(t)], [0, 1, 0], [-np.sin(t), 0, np.cos(t)]])
+    add((corners @ rot.T + (0.9, -0.2, -3.0))[box_faces], np.zeros((12, 3, 2)), 2, 2)   # volume box
+    add(quad(-0.5, 2.5, 0.6, 1.6, -1.8), quad_uv, 3, 1)                                 # textured film
+    add(quad(-3.0, 3.0, -1.4, -1.0, -2.0), quad_uv * 2, 4, 0)                             # BLEND strip
+    tris, uvs = np.concatenate(tris), np.concatenate(uvs)
+    scene = Scene.from_arrays(tris.reshape(-1, 3).astype(np.float32), np.arange(3 * len(tris)).reshape(-1, 3),
+                              uvs=uvs.reshape(-1, 2).astype(np.float32))
+    scene.textures = [Texture("noise", rng.integers(0, 256, (16, 16, 4), dtype=np.uint8), srgb=True),
+                      Texture("mask", rng.integers(0, 256, (8, 8, 4), dtype=np.uint8), srgb=False)]
+    scene.materials = [
+        Material.from_metallic_roughness("backdrop", (0.9, 0.85, 0.8, 1.0), 0.0, 0.6, base_color_texture=0),
+        Material.from_metallic_roughness("glass", (0.9, 0.95, 1.0, 1.0), 0.0, 0.0, transmission=1.0),
+        Material.from_metallic_roughness("gem", (0.95, 0.9, 0.95, 1.0), 0.0, 0.35, transmission=1.0, ior=1.6,
+                                         thickness=0.8, attenuation_color=(0.6, 0.8, 0.9), attenuation_distance=1.2,
+                                         dispersion=1.0),
+        Material.from_metallic_roughness("film", (0.7, 0.9, 0.8, 0.8), 0.1, 0.2, alpha_mode="BLEND",
+                                         transmission=0.9, transmission_texture=1, thickness=0.3, thickness_texture=1),
+        Material.from_metallic_roughness("strip", (0.9, 0.4, 0.2, 0.5), 0.0, 0.5, alpha_mode="BLEND")]
+    scene.triangle_material = np.concatenate(mats).astype(np.int32)
+    scene.mesh_names = ["backdrop", "glass", "gem"]
+    scene.triangle_mesh = np.concatenate(meshes).astype(np.int32)
+    scene.objects = [SceneObject("backdrop", "backdrop", "backdrop"), SceneObject("glass", "glass", "glass"),
+                     SceneObject("gem", "gem", "gem", volume_scale=1.5)]
+    scene.mesh_object = np.arange(3, dtype=np.int32)
+    scene.add_random_lights(12, seed=6, radius=(1.0, 3.0), intensity=2.0)
+    scene.add_spot_light((0, 3, 0), (0, -1, -1), (5, 5, 5), 12, 20, 40, shadow=True, shadow_map_size=128)
+    scene.set_environment(_check_environment(rng), intensity=0.8, rotation_deg=25.0)
+    scene.validate()
     return scene
 
 

@@ -3,7 +3,8 @@
  * BRDF (brdf.h gltf_light_terms, composed as compose_gltf does) for the degenerate-layer identity.
  *
  * q float[LC_IN * n] per query: n(3) ng(3) ncc(3) at(3) v(3) c(3) metallic rough ior sw sc(3) cc cc_rough
- *   sheen(3) sheen_rough irid irid_ior thickness_nm aniso L(3) I(3) ao occlusion (LC_* offsets below).
+ *   sheen(3) sheen_rough irid irid_ior thickness_nm aniso L(3) I(3) ao occlusion dt dtc(3) dw (diffuse
+ *   transmission, its colour, the diffuse weight; the light's back-side intensity is I too).
  * out float[LC_OUT * n]: light rgb, ambient rgb, emission scale, base glTF light rgb, Fi_d rgb, Fi_m rgb.
  * Work-item g answers queries g VEC .. g VEC + VEC - 1 (clamped, stores bounds-checked).
  */
@@ -27,10 +28,10 @@ kernel void layered_check(ENV_PARAMS, global const float* sheen_lut, global cons
     const intV on = (intV)first + LANES < n;
     LayeredV s = layered_prepare(on, nn, ng, ncc, at, v, Q(15), Q(16), Q(17), Q(18), Q(19), Q(20), Q(21),
                                  Q(22), Q(23), Q(24), Q(25), Q(26), Q(27), Q(28), Q(29), Q(30), Q(31), Q(32),
-                                 Q(33), Q(34), sheen_lut);
+                                 Q(33), Q(34), Q(43), Q(44), Q(45), Q(46), Q(47), sheen_lut);
     floatV lr = 0.0f, lg = 0.0f, lb = 0.0f, ar = 0.0f, ag = 0.0f, ab = 0.0f;
     const floatV lx = Q(35), ly = Q(36), lz = Q(37), ir = Q(38), ig = Q(39), ib = Q(40);
-    layered_light(&s, sheen_lut, lx, ly, lz, ir, ig, ib, &lr, &lg, &lb);
+    layered_light(&s, sheen_lut, lx, ly, lz, ir, ig, ib, ir, ig, ib, &lr, &lg, &lb);
     layered_ambient(&s, has_env, &env, ambient, Q(41), Q(42), multiscatter, &ar, &ag, &ab);
     const floatV es = layered_emission_scale(&s);
     /* the base glTF BRDF: brdf.h's factors composed as compose_gltf (albedo (1 - F0) kd + F0 ks + kt) */

@@ -23,7 +23,8 @@ kernel void struct_layout(global int* out)
     out[i++] = OFF(Material, spec_power); out[i++] = OFF(Material, metallic); out[i++] = OFF(Material, roughness);
     out[i++] = OFF(Material, normal_scale); out[i++] = OFF(Material, occlusion_strength);
     out[i++] = OFF(Material, alpha_cutoff); out[i++] = OFF(Material, flags); out[i++] = OFF(Material, refraction);
-    out[i++] = OFF(Material, ext); out[i++] = OFF(Material, pad); out[i++] = OFF(Material, slots);
+    out[i++] = OFF(Material, ext); out[i++] = OFF(Material, tx); out[i++] = OFF(Material, door_alpha);
+    out[i++] = OFF(Material, slots);
     out[i++] = sizeof(TexInfo);  out[i++] = OFF(TexInfo, first_level); out[i++] = OFF(TexInfo, levels);
     out[i++] = OFF(TexInfo, wrap_s); out[i++] = OFF(TexInfo, wrap_t); out[i++] = OFF(TexInfo, lut);
     out[i++] = OFF(TexInfo, pad);
@@ -44,8 +45,15 @@ kernel void struct_layout(global int* out)
     out[i++] = OFF(MaterialExt, iridescence); out[i++] = OFF(MaterialExt, iridescence_ior);
     out[i++] = OFF(MaterialExt, iridescence_thickness_min); out[i++] = OFF(MaterialExt, iridescence_thickness_max);
     out[i++] = OFF(MaterialExt, anisotropy_strength); out[i++] = OFF(MaterialExt, anisotropy_cos);
-    out[i++] = OFF(MaterialExt, anisotropy_sin); out[i++] = OFF(MaterialExt, layers); out[i++] = OFF(MaterialExt, pad);
+    out[i++] = OFF(MaterialExt, anisotropy_sin); out[i++] = OFF(MaterialExt, layers);
+    out[i++] = OFF(MaterialExt, diffuse_transmission); out[i++] = OFF(MaterialExt, diffuse_transmission_color);
     out[i++] = OFF(MaterialExt, slots);
+    out[i++] = sizeof(MaterialTx); out[i++] = OFF(MaterialTx, transmission); out[i++] = OFF(MaterialTx, thickness);
+    out[i++] = OFF(MaterialTx, attenuation_distance); out[i++] = OFF(MaterialTx, dispersion);
+    out[i++] = OFF(MaterialTx, attenuation_color); out[i++] = OFF(MaterialTx, ior);
+    out[i++] = OFF(MaterialTx, specular_color); out[i++] = OFF(MaterialTx, specular_factor);
+    out[i++] = OFF(MaterialTx, slots);
+    out[i++] = -12345;                 /* end marker: the test checks that every entry above was read */
 }
 
 /* in: float4 per item (x, y, z, w); out: uint4 per item: srgb8x3(xyz), oct12x2(xyz),

@@ -1,4 +1,4 @@
-"""Independent NumPy (float64) reference of the layered glTF surface model of issue 37: shade_layered() per pixel
+"""Independent NumPy (float64) reference of the layered glTF surface model of issues 37 and 38: shade_layered() per pixel
 on arrays of N pixels, returning linear RGB (N, 3). The pieces (Fresnel, GGX, anisotropic GGX, Charlie sheen and
 its albedo, the thin film, the split-sum terms) are in layered_pieces.py, re-exported here; its doc lists the
 sources and the choices where the READMEs and the lead's model note differ.
@@ -16,6 +16,14 @@ E = sheen_albedo):
     mix(col, pref(Rcc, ccr), cc Fc); times occ ao.
   no environment: a occ ao c (1 - m)(1 - mix(sw f0_d, c, m))(1 - max3(shc) E(NV))(1 - cc Fc).
   emission e (1 - cc Fc).
+Diffuse transmission (KHR_materials_diffuse_transmission README, "Implementation": the dielectric's base is
+mix(diffuse_brdf(c), diffuse_btdf(dtc), dt), the brdf for light and view on the same side, the btdf for opposite
+sides; with KHR_materials_transmission that diffuse BSDF is weighted by dw = 1 - transmission; dt, dtc, dw below):
+  the reflected diffuse albedo is c (1 - dt) dw; a light on the far side (N.L < 0) is the same model evaluated with
+  no specular, sheen or coat lobe, the albedo dtc dt dw, the cosine -N.L, and the Fresnel, sheen-albedo and
+  iridescence terms at the light mirrored through the surface, L - 2 (N.L) N (where the Sample Renderer evaluates
+  them); the environment's diffuse is irradiance(N) c (1 - dt) dw + irradiance(-N) dtc dt dw (the light through
+  the surface comes from the other hemisphere), the constant ambient's albedo (c (1 - dt) + dtc dt) dw.
 """
 from __future__ import annotations
 
@@ -34,8 +42,8 @@ from .layered_pieces import (DIFFERENCES, NV_MIN, SHEEN_MIN_ROUGHNESS, _c01, _do
 __all__ = ["DIFFERENCES", "NV_MIN", "SHEEN_MIN_ROUGHNESS", "Environment", "Surface", "SURFACE_DEFAULTS",
            "aniso_alphas", "coat_normal", "d_charlie", "d_ggx", "d_ggx_aniso", "dfg", "eval_iridescence",
            "eval_sensitivity", "f0_from_ior", "fresnel_schlick", "fss_ess", "lambda_sheen", "light_inputs",
-           "make_surface", "rgb_mix", "shade_environment", "shade_layered", "shade_light", "sheen_albedo",
-           "tangent_frame", "thin_film_terms", "vis_ggx", "vis_ggx_aniso", "vis_sheen"]
+           "make_surface", "rgb_mix", "shade_environment", "shade_layered", "shade_light", "shade_transmitted",
+           "sheen_albedo", "tangent_frame", "thin_film_terms", "vis_ggx", "vis_ggx_aniso", "vis_sheen"]
 
 
 # -- inputs ------------------------------------------------------------------------------------------
@@ -77,15 +85,16 @@ class Environment:
         return Environment(lambda n: brute_irradiance(img, rot(n)), pref)
 
 
-VEC3 = ("c", "N", "V", "Ng", "T", "Bt", "P", "e", "sc", "Ncc", "shc")
-SCALARS = ("m", "r", "occ", "ior", "sw", "cc", "ccr", "shr", "irid", "d", "irid_ior", "aniso", "aniso_rot")
+VEC3 = ("c", "N", "V", "Ng", "T", "Bt", "P", "e", "sc", "Ncc", "shc", "dtc")
+SCALARS = ("m", "r", "occ", "ior", "sw", "cc", "ccr", "shr", "irid", "d", "irid_ior", "aniso", "aniso_rot", "dt", "dw")
 
 
 @dataclass(frozen=True)
 class Surface:
     """Per-pixel inputs of the note, arrays over N pixels: (N, 3) c, N, V, Ng, T, Bt, P, e, sc, Ncc, shc;
     (N,) m, r, occ, ior, sw, cc, ccr, shr, irid, d (nm), irid_ior, aniso (strength), aniso_rot (radians);
-    (N, 2) aniso_dir (tangent-space direction before the rotation). T, Bt, P may be None. Build with
+    (N, 2) aniso_dir (tangent-space direction before the rotation); (N,) dt (diffuse transmission), (N, 3) dtc
+    (its colour), (N,) dw (the diffuse BSDF's weight, 1 - transmission). T, Bt, P may be None. Build with
     make_surface()."""
     c: np.ndarray
     m: np.ndarray
@@ -112,10 +121,14 @@ class Surface:
     aniso: np.ndarray
     aniso_dir: np.ndarray
     aniso_rot: np.ndarray
+    dt: np.ndarray
+    dtc: np.ndarray
+    dw: np.ndarray
 
 
 SURFACE_DEFAULTS = dict(occ=1.0, e=0.0, ior=1.5, sw=1.0, sc=1.0, cc=0.0, ccr=0.0, shc=0.0, shr=0.0, irid=0.0,
-                        d=400.0, irid_ior=1.3, aniso=0.0, aniso_dir=(1.0, 0.0), aniso_rot=0.0)
+                        d=400.0, irid_ior=1.3, aniso=0.0, aniso_dir=(1.0, 0.0), aniso_rot=0.0, dt=0.0, dtc=1.0,
+                        dw=1.0)
 
 
 def tangent_frame(Ng, tangent, handedness=1.0):
@@ -163,7 +176,7 @@ def make_surface(*, c, m, r, N, V, Ng=None, T=None, Bt=None, handedness=1.0, P=N
             out[k] = np.broadcast_to(np.asarray(v, np.float64), (n,)).copy()
     for k in ("V", "Ncc"):
         out[k] = _unit(out[k])
-    for k in ("r", "ccr", "aniso"):
+    for k in ("r", "ccr", "aniso", "dt"):
         out[k] = _c01(out[k])
     if out["T"] is None and np.any(out["aniso"] > 0):
         raise ValueError("make_surface: anisotropy > 0 needs the tangent T")
@@ -245,8 +258,41 @@ def _dielectric(diffuse, spec, F, spec_base):
     raise ValueError(f"spec_base {spec_base!r}: expected 'rgb' or 'max3'")
 
 
+def _sheen_scale(s: Surface, dv: _Derived, nl):
+    """min(1 - max3(shc) E(NV), 1 - max3(shc) E(NL)), clamped at 0 (E > 1 at grazing angles)."""
+    msh = _max3(s.shc)
+    El = np.zeros(len(nl))
+    sel = (msh > 0) & (nl > 0)
+    if sel.any():
+        El[sel] = _sheen_albedo_cached(nl[sel], s.shr[sel])
+    return np.maximum(np.minimum(1.0 - msh * dv.Ev, 1.0 - msh * El), 0.0)
+
+
+def shade_transmitted(s: Surface, dv: _Derived, L, I, spec_base="rgb"):
+    """The light of unit L (N, 3), intensity I (N, 3), reaching the far side of the surface (N.L < 0) and leaving
+    towards V through the diffuse BTDF: diffuse_btdf(dtc) = dtc / pi weighted dt dw, cosine |N.L|, in the
+    dielectric's Fresnel mix (no specular layer for it) at the mirrored light, then the metal's share (none), the
+    iridescence, sheen and coat weights as for the diffuse reflection."""
+    nlb = _c01(-_dot(s.N, L))
+    Lm = L - 2.0 * _dot(s.N, L)[:, None] * s.N                       # the light mirrored through the surface
+    vh = _c01(_dot(s.V, _unit(Lm + s.V)))
+    btdf = I * nlb[:, None] * s.dtc * (s.dt * s.dw)[:, None] / np.pi
+    sw = s.sw[:, None]
+    zero = np.zeros_like(btdf)
+    diel = _dielectric(btdf, zero, fresnel_schlick(sw * dv.f0d, sw, vh[:, None]), spec_base)
+    diel = _mix(diel, rgb_mix(btdf, zero, dv.Fi_d), dv.irid[:, None])
+    col = _mix(diel, zero, s.m[:, None]) * _sheen_scale(s, dv, nlb)[:, None]
+    return _mix(col, zero, (s.cc * dv.Fc)[:, None])
+
+
 def shade_light(s: Surface, dv: _Derived, L, I, spec_base="rgb", aniso="model"):
-    """One punctual light's outgoing radiance (N, 3) for unit L (N, 3) and intensity I (N, 3)."""
+    """One punctual light's outgoing radiance (N, 3) for unit L (N, 3) and intensity I (N, 3): reflected, plus
+    what diffuse transmission lets through from the far side."""
+    out = _shade_reflected(s, dv, L, I, spec_base, aniso)
+    return out + shade_transmitted(s, dv, L, I, spec_base) if np.any(s.dt > 0) else out
+
+
+def _shade_reflected(s: Surface, dv: _Derived, L, I, spec_base="rgb", aniso="model"):
     N, V, c = s.N, s.V, s.c
     nl = _c01(_dot(N, L))
     h = L + V
@@ -261,7 +307,7 @@ def shade_light(s: Surface, dv: _Derived, L, I, spec_base="rgb", aniso="model"):
             nl, dv.nv, _dot(At, V), _dot(Ab, V), _dot(At, L), _dot(Ab, L), at, ab)
         lobe = np.where(s.aniso > 0, la, lobe)
     k = I * nl[:, None]
-    diffuse, spec = k * c / np.pi, k * lobe[:, None]
+    diffuse, spec = k * (c * ((1.0 - s.dt) * s.dw)[:, None]) / np.pi, k * lobe[:, None]
     sw = s.sw[:, None]
     metal = fresnel_schlick(c, 1.0, vh[:, None]) * spec
     diel = _dielectric(diffuse, spec, fresnel_schlick(sw * dv.f0d, sw, vh[:, None]), spec_base)
@@ -269,12 +315,7 @@ def shade_light(s: Surface, dv: _Derived, L, I, spec_base="rgb", aniso="model"):
     metal = _mix(metal, spec * dv.Fi_m, ir)
     diel = _mix(diel, rgb_mix(diffuse, spec, dv.Fi_d), ir)
     col = _mix(diel, metal, s.m[:, None])
-    msh = _max3(s.shc)
-    El = np.zeros(len(nl))
-    sel = (msh > 0) & (nl > 0)
-    if sel.any():
-        El[sel] = _sheen_albedo_cached(nl[sel], s.shr[sel])
-    scale = np.maximum(np.minimum(1.0 - msh * dv.Ev, 1.0 - msh * El), 0.0)     # E > 1 at grazing angles
+    scale = _sheen_scale(s, dv, nl)
     col = k * s.shc * (d_charlie(nh, s.shr) * vis_sheen(nl, dv.nv, s.shr))[:, None] + col * scale[:, None]
     nccl, ncch = _c01(_dot(s.Ncc, L)), _c01(_dot(s.Ncc, H))
     coat = I * (nccl * d_ggx(ncch, dv.alpha_cc) * vis_ggx(nccl, dv.nccv, dv.alpha_cc))[:, None]
@@ -295,7 +336,9 @@ def shade_environment(s: Surface, dv: _Derived, env: Environment, multiscatter=F
         R = np.where((s.aniso > 0)[:, None], _reflect(s.V, _unit(_mix(an, s.N, bend[:, None]))), R)
     pref = env.prefiltered(R, s.r)
     A, B = dfg(dv.nv, s.r)
-    f_diffuse = env.irradiance(s.N) * s.c
+    f_diffuse = env.irradiance(s.N) * s.c * ((1.0 - s.dt) * s.dw)[:, None]
+    if np.any(s.dt > 0):        # the far hemisphere's light through the surface
+        f_diffuse = f_diffuse + env.irradiance(-s.N) * s.dtc * (s.dt * s.dw)[:, None]
     f_metal = fss_ess(s.c, 1.0, dv.nv, s.r, A, B, multiscatter) * pref
     Fd = fss_ess(s.sw[:, None] * dv.f0d, s.sw, dv.nv, s.r, A, B, multiscatter)
     f_diel = _dielectric(f_diffuse, pref, Fd, spec_base)
@@ -324,7 +367,8 @@ def shade_layered(surface, lights=(), environment=None, ambient=0.0, multiscatte
     coat = (1.0 - s.cc * dv.Fc)[:, None]
     if environment is None:
         f0 = _mix(s.sw[:, None] * dv.f0d, s.c, s.m[:, None])
-        out += (float(ambient) * occ * s.c * (1.0 - s.m)[:, None] * (1.0 - f0)
+        albedo = (s.c * (1.0 - s.dt)[:, None] + s.dtc * s.dt[:, None]) * s.dw[:, None]   # both sides lit alike
+        out += (float(ambient) * occ * albedo * (1.0 - s.m)[:, None] * (1.0 - f0)
                 * np.maximum(1.0 - _max3(s.shc) * dv.Ev, 0.0)[:, None] * coat)
     else:
         out += shade_environment(s, dv, environment, multiscatter, spec_base) * occ

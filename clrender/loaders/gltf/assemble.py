@@ -36,6 +36,8 @@ Also:
 * EXT_mesh_gpu_instancing (clrender/loaders/gltf/instancing.py): a mesh node with instances is
   expanded, instance-major, each instance node-world · T·R·S, its own object "<node>#<i>" (pieces
   "<node>#<i>/<mesh>[/<p>]"); instancing on a skinned or morphing node is warned and drawn once;
+* each object's `volume_scale` is |det|^(1/3) of its world matrix's 3x3 (× the instance's), at the load
+  pose (KHR_materials_volume's thickness is in mesh units; `instancing.volume_scales`); 1 when skinned;
 * animations (translation / rotation / scale / morph `weights` channels) -> `Scene.animation`, a
   `clrender.scene.animation.Animation` (None for static files) that `Scene.pose(t)` applies; the scene
   loads at the nodes' static transforms;
@@ -396,6 +398,7 @@ def _geometry(doc: Document, path: Path, order: list[int], features: dict, notes
                                       extra_uvs, tangent_uv))
             _check_positions(doc, pieces[-1].positions, f"{position_ref} placed by node {n}'s world transform")
         if instances is not None:   # instance-major: each instance's triangles together, one object each
+            scales = instancing.volume_scales(geometry.node_matrix(n), instances)
             for k, inst in enumerate(instances):
                 if not templates:
                     break
@@ -412,11 +415,14 @@ def _geometry(doc: Document, path: Path, order: list[int], features: dict, notes
                     _check_positions(doc, pieces[-1].positions, f"{position_ref} placed by node {n}'s world "
                                                                f"transform and {instancing.NAME} instance {k}")
                 piece_object.extend([len(objects)] * len(templates))
-                objects.append(SceneObject(f"{node_name}#{k}", mesh_name, f"{path_of(n)}#{k}", node.get("extras"), n))
+                objects.append(SceneObject(f"{node_name}#{k}", mesh_name, f"{path_of(n)}#{k}", node.get("extras"), n,
+                                           scales[k]))
             continue
         if len(pieces) > first_piece:
             piece_object.extend([len(objects)] * (len(pieces) - first_piece))
-            objects.append(SceneObject(node_name, mesh_name, path_of(n), node.get("extras"), n))
+            # a skinned mesh ignores its node's transform (spec): its volume keeps the mesh's units
+            scale = 1.0 if "skin" in node else instancing.volume_scales(geometry.node_matrix(n))[0]
+            objects.append(SceneObject(node_name, mesh_name, path_of(n), node.get("extras"), n, scale))
 
     deformation = None
     if deformers:               # the load pose (rest transforms, default weights) into the pieces

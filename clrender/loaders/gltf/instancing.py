@@ -90,6 +90,19 @@ def instance_matrices(doc: Document, n: int, attrs: dict) -> Optional[np.ndarray
     return m
 
 
+def volume_scales(world: np.ndarray, instances: Optional[np.ndarray] = None) -> np.ndarray:
+    """SceneObject.volume_scale of a node drawn by its world matrix (shape (1,)), or of each of its
+    instances, world · instance (shape (K,)): |det|^(1/3) of the 3x3, the factor by which the
+    transform scales lengths on average (exact for a uniform scale; KHR_materials_volume's thickness is
+    in mesh units and the node's transform applies to it). A transform that flattens the mesh (det 0)
+    keeps 1: no length scale is meaningful there."""
+    det = abs(float(np.linalg.det(np.asarray(world, np.float64)[:3, :3])))
+    if instances is not None:
+        det = det * np.abs(np.linalg.det(np.asarray(instances, np.float64)[:, :3, :3]))
+    scale = np.cbrt(np.atleast_1d(det))
+    return np.where(np.isfinite(scale) & (scale > 0), scale, 1.0)
+
+
 def _rotations(q: Optional[np.ndarray], count: int) -> np.ndarray:
     """(K, 3, 3) rotation matrices of unit quaternions (x, y, z, w)."""
     if q is None:

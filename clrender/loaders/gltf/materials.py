@@ -1,12 +1,13 @@
 """glTF 2.0 materials and textures -> clrender Materials and Textures (docs/materials.md).
 
 Every core material property, KHR_materials_emissive_strength, KHR_materials_unlit, the surface
-extensions (KHR_materials_ior, _specular, _clearcoat, _sheen, _iridescence, _anisotropy: read by
-clrender.loaders.gltf.surface, whose out-of-range or ill-typed values are clamped or defaulted with
-one warning each), and on every textureInfo its texCoord and KHR_texture_transform (`UVTransform`).
-Images are decoded in parallel (`start_images`), while the loader reads the geometry; a texture is
-shared by (image, wrap modes, colour space): base colour, emissive, specular colour and sheen
-colour images are sRGB, the others linear.
+extensions (KHR_materials_ior, _specular, _clearcoat, _sheen, _iridescence, _anisotropy,
+_transmission, _volume, _dispersion, _diffuse_transmission: read by clrender.loaders.gltf.surface,
+whose out-of-range or ill-typed values are clamped or defaulted with one warning each), and on every
+textureInfo its texCoord and KHR_texture_transform (`UVTransform`). Images are decoded in parallel
+(`start_images`), while the loader reads the geometry; a texture is shared by (image, wrap modes,
+colour space): base colour, emissive, specular colour, sheen colour and diffuse transmission colour
+images are sRGB, the others linear.
 
 An image file that is missing or cannot be decoded (and an embedded image that cannot be decoded)
 is not an error: one warning names the file and the materials that use it, those materials' slots
@@ -17,7 +18,7 @@ from __future__ import annotations
 import warnings
 from urllib.parse import unquote
 
-from clrender.scene.material import EXT_TEXTURE_SLOTS
+from clrender.scene.material import EXT_TEXTURE_SLOTS, TX_TEXTURE_SLOTS
 from clrender.scene.model import TEXTURE_SLOTS, Material, SceneError, Texture, UVTransform
 from clrender.loaders import confine
 from clrender.loaders.common import decode_image, start_images
@@ -170,7 +171,7 @@ def _drop_textures(materials: list, remap: dict, count: int) -> None:
     them and the Scene being assembled already holds these very objects (common.assemble copies
     the list before it calls textures()), so replacing them in `materials` would not reach it."""
     for m in materials:
-        for slot in TEXTURE_SLOTS + EXT_TEXTURE_SLOTS:
+        for slot in TEXTURE_SLOTS + EXT_TEXTURE_SLOTS + TX_TEXTURE_SLOTS:
             t = getattr(m, f"{slot}_texture")
             if 0 <= t < count:
                 object.__setattr__(m, f"{slot}_texture", remap.get(t, -1))

@@ -23,7 +23,10 @@ COMPRESSION_EXTENSIONS = frozenset({DRACO, MESHOPT, QUANTIZATION})
 # KHR_mesh_quantization, KHR_draco_mesh_compression, EXT_meshopt_compression: `compression`.
 # The surface extensions (clrender.loaders.gltf.materials reads them into Material's fields).
 SURFACE_EXTENSIONS = frozenset({"KHR_materials_ior", "KHR_materials_specular", "KHR_materials_clearcoat",
-                                "KHR_materials_sheen", "KHR_materials_iridescence", "KHR_materials_anisotropy"})
+                                "KHR_materials_sheen", "KHR_materials_iridescence", "KHR_materials_anisotropy",
+                                # see-through materials (issue 38; docs/transmission.md)
+                                "KHR_materials_transmission", "KHR_materials_volume", "KHR_materials_dispersion",
+                                "KHR_materials_diffuse_transmission"})
 # This is the single table of implemented extension names: add a name here when it is implemented.
 SUPPORTED_EXTENSIONS = frozenset({"KHR_materials_emissive_strength", "KHR_materials_unlit", "KHR_texture_transform",
                                   "KHR_lights_punctual", WEBP, BASISU,
@@ -57,8 +60,8 @@ TEXTURE_INFOS = (("base_color", ("pbrMetallicRoughness", "baseColorTexture"), Tr
                  ("normal", ("normalTexture",), False),
                  ("occlusion", ("occlusionTexture",), False),
                  ("emissive", ("emissiveTexture",), True))
-# the surface extensions' texture slots (Material.EXT_TEXTURE_SLOTS): (clrender slot, extension, its
-# textureInfo property, sRGB image)
+# the surface extensions' texture slots (Material.EXT_TEXTURE_SLOTS, then Material.TX_TEXTURE_SLOTS):
+# (clrender slot, extension, its textureInfo property, sRGB image)
 EXT_TEXTURE_INFOS = (("specular", "KHR_materials_specular", "specularTexture", False),
                      ("specular_color", "KHR_materials_specular", "specularColorTexture", True),
                      ("clearcoat", "KHR_materials_clearcoat", "clearcoatTexture", False),
@@ -68,7 +71,13 @@ EXT_TEXTURE_INFOS = (("specular", "KHR_materials_specular", "specularTexture", F
                      ("sheen_roughness", "KHR_materials_sheen", "sheenRoughnessTexture", False),
                      ("iridescence", "KHR_materials_iridescence", "iridescenceTexture", False),
                      ("iridescence_thickness", "KHR_materials_iridescence", "iridescenceThicknessTexture", False),
-                     ("anisotropy", "KHR_materials_anisotropy", "anisotropyTexture", False))
+                     ("anisotropy", "KHR_materials_anisotropy", "anisotropyTexture", False),
+                     ("diffuse_transmission", "KHR_materials_diffuse_transmission", "diffuseTransmissionTexture",
+                      False),
+                     ("diffuse_transmission_color", "KHR_materials_diffuse_transmission",
+                      "diffuseTransmissionColorTexture", True),
+                     ("transmission", "KHR_materials_transmission", "transmissionTexture", False),
+                     ("thickness", "KHR_materials_volume", "thicknessTexture", False))
 GLB_MAGIC, GLB_JSON, GLB_BIN = 0x46546C67, 0x4E4F534A, 0x004E4942
 LIGHT_TYPES = ("directional", "point", "spot")
 

@@ -1,11 +1,15 @@
 """The glTF surface extensions (KHR_materials_ior, _specular, _clearcoat, _sheen, _iridescence,
-_anisotropy) read tolerantly into `Material` keyword arguments (docs/materials.md).
+_anisotropy) and the see-through ones (KHR_materials_transmission, _volume, _dispersion,
+_diffuse_transmission) read tolerantly into `Material` keyword arguments (docs/materials.md).
 
 The issue's bad-input rule, not the core slots' errors: a value out of its range is clamped to the
 range, a value of the wrong JSON type (or a texture index that does not exist) gives the spec's
 default, and each such case is one problem string ('what is wrong: what is used instead') that
 clrender.loaders.gltf.materials turns into a warning naming the file and the material. Ranges and
 defaults are the extensions' schemas (KhronosGroup/glTF, extensions/2.0/Khronos/KHR_materials_*).
+attenuationDistance's minimum is exclusive: 0 or less gives the default (+inf, no attenuation), not a
+clamp. An extension whose base is missing (a volume without transmission or diffuse transmission, a
+dispersion without a volume: `DEPENDS`) is ignored, textures included, with one problem string.
 """
 from __future__ import annotations
 
@@ -29,6 +33,24 @@ FACTORS = {
                                   ("iridescenceThicknessMaximum", "iridescence_thickness_max", 400.0, 0.0, INF)),
     "KHR_materials_anisotropy": (("anisotropyStrength", "anisotropy_strength", 0.0, 0.0, 1.0),
                                  ("anisotropyRotation", "anisotropy_rotation", 0.0, -INF, INF)),
+    "KHR_materials_transmission": (("transmissionFactor", "transmission", 0.0, 0.0, 1.0),),
+    "KHR_materials_volume": (("thicknessFactor", "thickness", 0.0, 0.0, INF),
+                             ("attenuationDistance", "attenuation_distance", INF, 0.0, INF),   # exclusive minimum
+                             ("attenuationColor", "attenuation_color", (1.0, 1.0, 1.0), 0.0, 1.0)),
+    "KHR_materials_dispersion": (("dispersion", "dispersion", 0.0, 0.0, INF),),
+    "KHR_materials_diffuse_transmission": (("diffuseTransmissionFactor", "diffuse_transmission", 0.0, 0.0, 1.0),
+                                           ("diffuseTransmissionColorFactor", "diffuse_transmission_color",
+                                            (1.0, 1.0, 1.0), 0.0, 1.0)),
+}
+# fields whose schema minimum is exclusive: a value at or below it gives the default
+EXCLUSIVE_MINIMUM = frozenset({"attenuation_distance"})
+# extension -> (the extensions it builds on: one must be present, or it is ignored; why, what is used instead).
+# Checked in order, so a dispersion on an ignored volume is ignored too.
+DEPENDS = {
+    "KHR_materials_volume": (("KHR_materials_transmission", "KHR_materials_diffuse_transmission"),
+                             "a volume needs light through its surface", "the material is thin-walled"),
+    "KHR_materials_dispersion": (("KHR_materials_volume",), "dispersion applies to a volume",
+                                 "no dispersion"),
 }
 # every property each extension defines (others are reported as unknown, like a misspelt core one)
 PROPERTIES = {name: {p[0] for p in props} | {key for _, ext, key, _ in EXT_TEXTURE_INFOS if ext == name}
@@ -43,13 +65,30 @@ def _fmt(x) -> str:
     return "[" + ", ".join(repr(float(c)) for c in x) + "]" if isinstance(x, tuple) else repr(float(x))
 
 
+def ignored_extensions(ext) -> dict[str, str]:
+    """{extension: 'why: what is used instead'} of the extensions in a material's `extensions` object
+    that are ignored because none of the extensions they build on (`DEPENDS`) is there (an extension
+    that is not an object counts as not there: surface_values reports it)."""
+    out: dict[str, str] = {}
+    ext = ext if isinstance(ext, dict) else {}
+    for name, (needs, why, instead) in DEPENDS.items():
+        if isinstance(ext.get(name), dict) and not any(isinstance(ext.get(n), dict) and n not in out for n in needs):
+            out[name] = (f"{name} without {' or '.join(needs)} ({why}): the extension is ignored, "
+                         f"{instead}")
+    return out
+
+
 def surface_values(ext: dict) -> tuple[dict, list[str]]:
     """The factors of the surface extensions present in a material's `extensions` object:
     ({Material field: value}, [problems]). Absent extensions and properties keep Material's
     defaults (the same as the schemas'); textures are read by `layer_texture`."""
     kw, problems = {}, []
+    ignored = ignored_extensions(ext)
     for name, props in FACTORS.items():
         if name not in ext:
+            continue
+        if name in ignored:
+            problems.append(ignored[name])
             continue
         obj = ext[name]
         if not isinstance(obj, dict):
@@ -73,6 +112,9 @@ def surface_values(ext: dict) -> tuple[dict, list[str]]:
                     problems.append(f"{what} must be a finite number, got {v!r}: the default {_fmt(default)} is used")
                     continue
                 got = float(v)
+                if field in EXCLUSIVE_MINIMUM and got <= lo:
+                    problems.append(f"{what} {v!r} is out of its range > {lo}: the default {_fmt(default)} is used")
+                    continue
                 kw[field] = 0.0 if field == "ior" and got == 0.0 else min(max(got, lo), hi)
             if kw[field] != got:
                 bounds = f"[{lo}, {hi}]" if hi < INF else f">= {lo}" + (" or exactly 0" if field == "ior" else "")
@@ -88,12 +130,13 @@ def surface_values(ext: dict) -> tuple[dict, list[str]]:
 
 def layer_textures(mat: dict) -> list[tuple[str, str, object]]:
     """(clrender slot, 'extension.property', textureInfo as written) of every surface-extension texture
-    the material gives (spec.EXT_TEXTURE_INFOS); extension objects that are not objects are skipped
-    (the materials loader warns about them)."""
+    the material gives (spec.EXT_TEXTURE_INFOS); extension objects that are not objects, and ignored
+    extensions (`ignored_extensions`), are skipped (the materials loader warns about them)."""
     ext = mat.get("extensions") or {}
+    ignored = ignored_extensions(ext)
     out = []
     for slot, name, key, _ in EXT_TEXTURE_INFOS:
-        obj = ext.get(name) if isinstance(ext, dict) else None
+        obj = ext.get(name) if isinstance(ext, dict) and name not in ignored else None
         if isinstance(obj, dict) and key in obj:
             out.append((slot, f"{name}.{key}", obj[key]))
     return out

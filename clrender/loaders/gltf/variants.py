@@ -104,6 +104,7 @@ def _missing_texcoord(material, attrs: dict):
     layer = getattr(material, "layer_textures_used", None)     # the surface extensions' slots
     if layer is not None:
         used.update(layer())
+    used.update(material.tx_textures_used())                   # KHR_materials_transmission, _volume
     for slot, (_, uv) in used.items():
         if f"TEXCOORD_{uv.texcoord}" not in attrs:
             return slot, uv.texcoord
