@@ -3,7 +3,7 @@ from clrender.scene.camera import Camera
 from clrender.scene.model import Material, Scene, SceneError, Sun, Texture
 
 __all__ = ["Camera", "Material", "Scene", "SceneError", "Sun", "Texture", "load_scene",
-           "Renderer", "RenderConfig", "Frame", "list_devices"]
+           "Renderer", "RenderConfig", "Frame", "list_devices", "view"]
 
 
 def __getattr__(name):
@@ -17,6 +17,9 @@ def __getattr__(name):
     if name in ("Renderer", "Frame"):
         from clrender.render import renderer
         return getattr(renderer, name)
+    if name == "view":                          # the browser viewer (clrender/viewer/; the `view` extra)
+        from clrender.viewer import view
+        return view
     if name == "list_devices":
         from clrender.device.core import list_devices
         return list_devices

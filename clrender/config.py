@@ -306,6 +306,36 @@ for _option in OPTIONS:                         # every default passes its own r
     _option.check(_option.default)
 
 
+
+# -- a scene file's [render] table (the CLI, batch tasks and the viewer read it the same way) ----
+DEFAULT_SIZE = (1280, 720)
+
+
+def scene_size(scene, width: Optional[int], height: Optional[int]) -> tuple[int, int]:
+    """width/height, else the scene's [render] size, else 1280x720; one given keeps the aspect."""
+    settings = scene.settings.get("render", {}) if isinstance(scene.settings, dict) else {}
+    dw, dh = settings.get("width"), settings.get("height")
+    dw = dw if isinstance(dw, int) and dw > 0 else DEFAULT_SIZE[0]
+    dh = dh if isinstance(dh, int) and dh > 0 else DEFAULT_SIZE[1]
+    if width is None and height is None:
+        return dw, dh
+    if width is None:
+        width = max(1, round(height * dw / dh))
+    if height is None:
+        height = max(1, round(width * dh / dw))
+    return width, height
+
+
+def scene_config(scene, options: dict):
+    """The scene's [render] options (TOML) with `options` on top; ValueError names the table."""
+    names = OPTION_NAMES
+    settings = scene.settings.get("render", {}) if isinstance(scene.settings, dict) else {}
+    try:
+        return RenderConfig.from_options(**{**{k: v for k, v in settings.items() if k in names}, **options})
+    except ValueError as exc:
+        raise ValueError(f"{scene.source}: [render]: {exc}") from None
+
+
 def markdown_table() -> str:
     """docs/options.md's table: one row per option (its TOML key and RenderConfig field)."""
     rows = ["| option (`[render]` key, `RenderConfig` field) | CLI flag | type | default | values | what |",

@@ -41,6 +41,7 @@ LAYERS = {
     "tools": (5, ("tools",)),
     "dataset": (5, ("dataset",)),
     "batch": (6, ("batch",)),
+    "viewer": (6, ("viewer",)),          # the browser viewer: a loop over the API, like batch
     "cli": (7, ("cli",)),
     "root": (8, ("__init__", "__main__")),      # clrender/__init__.py (module "clrender"), __main__.py
 }

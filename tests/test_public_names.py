@@ -9,7 +9,7 @@ import sys
 
 import pytest
 
-PACKAGES = ("abi", "scene", "device", "loaders", "loaders.gltf", "outputs", "render", "tools", "batch",
+PACKAGES = ("abi", "scene", "device", "loaders", "loaders.gltf", "outputs", "render", "tools", "batch", "viewer",
             "dataset", "cli")
 
 

@@ -19,10 +19,10 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Optional
 
+from clrender.config import DEFAULT_SIZE, scene_config, scene_size  # noqa: F401  (jobs and the CLI import them here)
 from clrender.outputs.aov_io import aov_paths, write_outputs
 from clrender.scene.camera import Camera
 
-DEFAULT_SIZE = (1280, 720)
 
 
 @dataclass(frozen=True)
@@ -70,32 +70,6 @@ class FrameTask:
             from clrender.dataset.outputs import view_paths
             return view_paths(Path(self.image), self.outputs.aovs, self.outputs.exr)
         return [Path(self.image), *aov_paths(Path(self.image), self.outputs.aovs, self.outputs.exr, self.outputs.sheet)]
-
-
-# -- settings shared with the CLI -------------------------------------------------------------
-def scene_size(scene, width: Optional[int], height: Optional[int]) -> tuple[int, int]:
-    """width/height, else the scene's [render] size, else 1280x720; one given keeps the aspect."""
-    settings = scene.settings.get("render", {}) if isinstance(scene.settings, dict) else {}
-    dw, dh = settings.get("width"), settings.get("height")
-    dw = dw if isinstance(dw, int) and dw > 0 else DEFAULT_SIZE[0]
-    dh = dh if isinstance(dh, int) and dh > 0 else DEFAULT_SIZE[1]
-    if width is None and height is None:
-        return dw, dh
-    if width is None:
-        width = max(1, round(height * dw / dh))
-    if height is None:
-        height = max(1, round(width * dh / dw))
-    return width, height
-
-
-def scene_config(scene, options: dict):
-    """The scene's [render] options (TOML) with `options` on top; ValueError names the table."""
-    from clrender.config import OPTION_NAMES as names, RenderConfig
-    settings = scene.settings.get("render", {}) if isinstance(scene.settings, dict) else {}
-    try:
-        return RenderConfig.from_options(**{**{k: v for k, v in settings.items() if k in names}, **options})
-    except ValueError as exc:
-        raise ValueError(f"{scene.source}: [render]: {exc}") from None
 
 
 # -- the worker side --------------------------------------------------------------------------

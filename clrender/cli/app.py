@@ -1,4 +1,4 @@
-"""Command line: `clrender render | dataset | devices | check | info`, a thin loop over the library API.
+"""Command line: `clrender render | dataset | view | devices | check | info`, a thin loop over the library API.
 This module parses and dispatches; one module per command family does the work: render.py
 (frames and clusters: batch.py), dataset.py, devices.py (devices, check), info.py, setup.py
 (warmup, cache); parser.py is the grammar, common.py what they share (nothing imports upward).
@@ -15,6 +15,8 @@ This module parses and dispatches; one module per command family does the work: 
                      [--cameras FILE.json|.toml] [--format nerf|colmap] [--aov depth,object_id,...|none]
                      [--depth-scale S] [--exr] [--width W --height H --device NAME, render options]
                      [--resume] [--workers N | --scheduler ADDRESS]      (clrender/cli/dataset.py)
+    clrender view SCENE [--port 8080 --host 127.0.0.1 --open --cameras FILE, --width W --height H, render options]
+                  (clrender/cli/view.py: the scene in a web page)
     clrender devices [--json] [--require NAME]
     clrender warmup [--device NAME] [--all] [-q]
     clrender cache info [--json] | clear
@@ -33,7 +35,7 @@ from typing import Optional, Sequence
 
 from clrender import progress
 from clrender.errors import DeviceError, SceneError
-from clrender.cli import dataset as cli_dataset, parser as cli_parser, setup as cli_setup
+from clrender.cli import dataset as cli_dataset, parser as cli_parser, setup as cli_setup, view as cli_view
 from clrender.cli.parser import _join_vector_options
 
 # Names scripts and tests reach as clrender.cli.X / clrender.cli.app.X (all of this was one module).
@@ -50,7 +52,8 @@ from clrender.cli.devices import cmd_check, cmd_devices  # noqa: F401
 from clrender.cli.info import _json_default, _objects_line, cmd_info  # noqa: F401
 
 COMMANDS = {"render": cmd_render, "devices": cmd_devices, "check": cmd_check, "info": cmd_info,
-            "warmup": cli_setup.run_warmup, "cache": cli_setup.run_cache, "dataset": cli_dataset.cmd_dataset}
+            "warmup": cli_setup.run_warmup, "cache": cli_setup.run_cache, "dataset": cli_dataset.cmd_dataset,
+            "view": cli_view.cmd_view}
 
 
 def build_parser():
@@ -59,6 +62,7 @@ def build_parser():
     cli_parser.add_render_parser(sub)
     cli_parser.add_devices_parser(sub)
     cli_dataset.add_parser(sub)         # dataset
+    cli_view.add_parser(sub)            # view
     cli_setup.add_parsers(sub)          # warmup, cache
     cli_parser.add_check_parser(sub)
     cli_parser.add_info_parser(sub)

@@ -1,6 +1,7 @@
-"""What the command modules share (clrender/cli/render.py, batch.py, dataset.py, info.py, ...):
+"""What the command modules share (clrender/cli/render.py, camera_route.py, batch.py, dataset.py, info.py, ...):
 the program name, one-line errors and notes, the checks every command runs before anything
-renders (scene files, --allow-outside, render flags, outputs that would overwrite inputs).
+renders (scene files, --allow-outside, render flags, outputs that would overwrite inputs), the
+environment flags and the per-scene stats line.
 The bottom of clrender/cli/: it imports no other command module."""
 from __future__ import annotations
 
@@ -36,6 +37,24 @@ def _one_line(exc: BaseException) -> str:
     if len(lines) > 1:
         first += f" (set {ENV_DEBUG}=1 for details)"
     return first
+
+
+def is_folder_output(out: str) -> bool:
+    """An output that names a folder: an existing one, a trailing slash, or no suffix."""
+    target = Path(out)
+    return target.is_dir() or out.endswith(("/", os.sep)) or target.suffix == ""
+
+
+def one_image_output(out: str, n: int, many: str, pattern: str) -> list[Path]:
+    """[the image file `out`] for one output (`many`: the error when n > 1 items would share it;
+    `pattern`: the placeholder a pattern would use instead)."""
+    target = Path(out)
+    if target.suffix.lower() not in IMAGE_SUFFIXES:
+        raise CLIError(f"output {out!r}: unsupported image type {target.suffix!r} "
+                       f"(use {', '.join(IMAGE_SUFFIXES)}, a directory, or a pattern with {pattern})")
+    if n > 1:
+        raise CLIError(many)
+    return [target]
 
 
 def _debug() -> bool:
@@ -173,4 +192,76 @@ def check_writable(folders, outputs_of: Optional[dict] = None) -> None:
             if isinstance(exc, (FileExistsError, NotADirectoryError)):
                 reason = f"{folder} is not a folder" if folder.exists() else "a parent is not a folder"
             raise CLIError(f"{what} is not writable: {reason}") from None
+
+
+# -- the environment flags and the per-scene lines (render, its camera-file route) ----------------
+ENVIRONMENT_FLAGS = {"environment": "--environment", "environment_intensity": "--environment-intensity",
+                     "environment_rotation": "--environment-rotation"}
+
+
+def environment_option(args):
+    """--environment, loaded once for every scene: None (not given: each scene's own), "none", or
+    the Environment (with --environment-intensity/--environment-rotation)."""
+    text = getattr(args, "environment", None)
+    intensity = getattr(args, "environment_intensity", None)
+    rotation = getattr(args, "environment_rotation", None)
+    if text is None:
+        return None
+    if text.strip().lower() == "none":
+        if intensity is not None or rotation is not None:
+            raise CLIError("--environment-intensity/--environment-rotation: there is no environment with "
+                           "--environment none")
+        return "none"
+    from clrender.scene.environment import load_environment
+    try:
+        return load_environment(text, 1.0 if intensity is None else intensity, 0.0 if rotation is None else rotation)
+    except ValueError as exc:
+        raise CLIError(f"--environment: {_one_line(exc)}") from None
+
+
+def apply_environment(scene, args, environment) -> None:
+    """Put environment_option's result on a loaded scene: "none" removes the scene's environment
+    (a TOML table's, load_scene's default studio), an Environment replaces it; without
+    --environment, --environment-intensity/--environment-rotation change the scene's own (a
+    CLIError when it has none)."""
+    if isinstance(environment, str):                 # "none"
+        scene.set_environment(None)
+        return
+    if environment is not None:
+        if isinstance(scene.settings, dict):
+            scene.settings.pop("default_environment", None)
+        scene.environment = environment
+        return
+    intensity = getattr(args, "environment_intensity", None)
+    rotation = getattr(args, "environment_rotation", None)
+    if intensity is None and rotation is None:
+        return
+    if scene.environment is None:
+        flag = "--environment-intensity" if intensity is not None else "--environment-rotation"
+        raise CLIError(f"{flag}: {scene.source} has no environment to change (give --environment PATH|studio)")
+    scene.environment = scene.environment.with_params(intensity=intensity, rotation_deg=rotation)
+
+
+def describe_environment(scene) -> str:
+    """"environment: ..." for the per-scene line: none, the source, "studio (default: the file has no lights)"."""
+    from clrender.scene.environment import describe
+    settings = scene.settings if isinstance(scene.settings, dict) else {}
+    return describe(getattr(scene, "environment", None), default=bool(settings.get("default_environment")))
+
+
+def _format_stats(stats: dict) -> str:
+    from clrender.render.pipeline import pass_ms
+    parts = [f"{name[:-3]} {ms:.2f}" for name, ms in pass_ms(stats).items()]
+    text = "passes (ms): " + ", ".join(parts)
+    if "total_ms" in stats:
+        text += f"; total {stats['total_ms']:.2f}"
+    if "wall_ms" in stats:
+        host = ", ".join(f"{k[:-3]} {v:.1f}" for k, v in stats.get("host", {}).items())
+        text += f"; render() {stats['wall_ms']:.1f} (host: {host})"
+    extra = [f"{k} {stats[k]}" for k in ("prims", "tile_entries", "retries") if k in stats]
+    if "device_bytes" in stats:
+        extra.append(f"device {stats['device_bytes'] / 2**20:.1f} MiB")
+    if extra:
+        text += "; " + ", ".join(extra)
+    return text
 

@@ -22,13 +22,13 @@ from clrender.cli.batch import _check_writable, run_job
 from clrender.cli.parser import (
     _aov_list, _finite_float, _fov, _non_negative_int, _positive_float, _positive_int, add_batch_options,
     add_render_options)
+from clrender.dataset.camera_file import file_camera, read_camera_file
 from clrender.dataset.views import (
-    DEFAULT_ELEVATION_DEG, DEFAULT_FOV_DEG, FORMATS, LAYOUTS, export_documents, file_cameras, layout_cameras,
-    parse_documents, read_camera_file)
+    DEFAULT_ELEVATION_DEG, DEFAULT_FOV_DEG, FORMATS, LAYOUTS, export_documents, layout_cameras, parse_documents)
 from clrender.dataset.outputs import PNG16_MAX, view_files
 from clrender.batch.manifest import MANIFEST_NAME, Manifest
 
-FPS = 24.0                       # unused by a dataset (every view at t = 0) but part of a job's signature
+FPS = 24.0                       # unused by a dataset (views have no motion) but part of a job's signature
 DEFAULT_AOVS = ("depth", "object_id")
 
 
@@ -42,7 +42,7 @@ def add_parser(sub) -> None:
                        description="Render N views around SCENE's bounds (or the cameras of a file) into DIR: "
                                    "images/, depth/, masks/ and the cameras as nerfstudio/instant-ngp "
                                    "transforms.json or a COLMAP text model (docs/datasets.md). Every view shows "
-                                   "the scene at t = 0.")
+                                   "the scene at t = 0 (a camera file's: at its camera's time, if any).")
     d.add_argument("scenes", nargs=1, metavar="SCENE", help="scene file (.toml .gltf .glb .obj .ply .stl)")
     d.add_argument("-o", "--output", required=True, metavar="DIR", help="the export folder")
     d.add_argument("--views", type=_positive_int, metavar="N", help="number of views (with --cameras: the file's)")
@@ -100,7 +100,9 @@ def _check_view_budget(views: int) -> None:
 
 
 def _cameras(args, scene, bounds):
-    """(source cameras, width, height, what the dataset.json records of them): a layout's or a file's."""
+    """(source cameras, per view its time and name, the scene's bounds at each, width, height, what
+    the dataset.json records of them): a layout's (all at t = 0) or a file's (each at its "time",
+    else 0)."""
     fov = args.fov or DEFAULT_FOV_DEG
     if args.cameras is None:
         if args.views is None:
@@ -110,7 +112,8 @@ def _cameras(args, scene, bounds):
         width, height = scene_size(scene, args.width, args.height)
         cameras = layout_cameras(settings["layout"], args.views, bounds, width, height, fov,
                                  settings["elevation_deg"], settings["seed"])
-        return cameras, width, height, {**settings, "fov_y_deg": fov}
+        return (cameras, [{"time": 0.0}] * len(cameras), [bounds] * len(cameras), width, height,
+                {**settings, "fov_y_deg": fov})
     given = [f for f, v in (("--layout", args.layout), ("--seed", args.seed), ("--elevation", args.elevation))
              if v is not None]
     if given:
@@ -124,17 +127,33 @@ def _cameras(args, scene, bounds):
             width, height = cf.width, cf.height              # the size the file's K are given for
         else:
             width, height = scene_size(scene, args.width, args.height)
-        return file_cameras(cf, bounds, width, height, fov), width, height, {"cameras": args.cameras}
+        times = [float(e.get("time", 0.0)) for e in cf.entries]
+        at = {0.0: bounds}                   # near/far where absent: around the scene posed at the view's time
+        for t in times:
+            if t not in at:
+                if scene.animation is not None:
+                    scene.pose(t)
+                at[t] = scene.bounds() if scene.animation is not None else bounds
+        if len(at) > 1 and scene.animation is not None:
+            scene.pose(0.0)
+        cameras = [file_camera(cf, i, at[t], width, height, fov) for i, t in enumerate(times)]
+        for i, camera in enumerate(cameras):
+            if camera.is_orthographic:      # transforms.json and COLMAP hold pinhole cameras
+                raise CLIError(f"--cameras {cf.path}: camera {i}: ortho: a {args.format} dataset holds pinhole "
+                               f"cameras only (give fov_y_deg, or render it with `clrender render --camera`)")
+        labels = [{"time": t, **({"name": e["name"]} if "name" in e else {})} for t, e in zip(times, cf.entries)]
+        return cameras, labels, [at[t] for t in times], width, height, {"cameras": args.cameras}
     except ValueError as exc:
-        raise CLIError(str(exc)) from None
+        raise CLIError(f"--cameras {exc}") from None
 
 
-def _check_depth_range(views, bounds, scale: float) -> None:
+def _check_depth_range(views, view_bounds, scale: float) -> None:
     """Refuse a view that could see a depth the 16-bit PNG cannot hold: the farthest corner of the
-    bounds along its optical axis, or its far plane if nearer (nothing renders beyond far)."""
-    lo, hi = np.asarray(bounds, np.float64)
-    corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
-    for v in views:
+    bounds (the scene's at the view's time) along its optical axis, or its far plane if nearer
+    (nothing renders beyond far)."""
+    for v, bounds in zip(views, view_bounds):
+        lo, hi = np.asarray(bounds, np.float64)
+        corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
         reach = min(float((corners @ v.R[2] + v.t[2]).max()), v.camera.far)
         if reach * scale > PNG16_MAX:
             fit = 10.0 ** math.floor(math.log10(PNG16_MAX / reach))
@@ -157,33 +176,42 @@ def cmd_dataset(args) -> int:
     if scene.animation is not None:
         scene.pose(0.0)
     bounds = scene.bounds()
-    cameras, width, height, source = _cameras(args, scene, bounds)
+    cameras, labels, view_bounds, width, height, source = _cameras(args, scene, bounds)
+    times = [label["time"] for label in labels]
     aovs = tuple(args.aov)
     if "object_id" in aovs and len(scene.objects) >= PNG16_MAX:
         raise CLIError(f"{scene_path}: {len(scene.objects)} objects do not fit 16-bit masks "
                        f"(drop object_id from --aov)")
     digits = max(4, len(str(len(cameras) - 1)))
     files = [view_files(f"{i:0{digits}d}", aovs, args.exr) for i in range(len(cameras))]
-    meta = {"clrender": VERSION, "scene": scene_path, **source, "time": 0.0, "aovs": list(aovs), "exr": args.exr,
+    timed = any(t != 0.0 for t in times)           # dataset.json: each view's time instead of one, and names
+    files = [{**f, **{k: v for k, v in label.items() if timed or k != "time"}} for f, label in zip(files, labels)]
+    meta = {"clrender": VERSION, "scene": scene_path, **source, **({} if timed else {"time": 0.0}),
+            "aovs": list(aovs), "exr": args.exr,
             "depth_scale": args.depth_scale, **({"variant": args.variant} if args.variant is not None else {})}
     docs = export_documents(args.format, cameras, width, height, files, meta)
     views = parse_documents(docs, root)            # the reader's cameras, from the very texts written below
     if "depth" in aovs:
-        _check_depth_range(views, bounds, args.depth_scale)
+        _check_depth_range(views, view_bounds, args.depth_scale)
     inputs = input_files([scene], [(args.cameras, f"--cameras {args.cameras}")])   # and what the scene reads
     outputs = Outputs(aovs, exr=args.exr, layout="dataset", depth_scale=args.depth_scale)
-    tasks = [FrameTask(scene=scene_path, frame=v.index, time=0.0, dt=1.0 / FPS, image=str(v.image), outputs=outputs,
-                       width=width, height=height, options=tuple(sorted(options.items())), device=args.device,
-                       view=v.camera, allow=allow, variant=args.variant) for v in views]
+    tasks = [FrameTask(scene=scene_path, frame=v.index, time=times[v.index], dt=1.0 / FPS, image=str(v.image),
+                       outputs=outputs, width=width, height=height, options=tuple(sorted(options.items())),
+                       device=args.device, view=v.camera, allow=allow, variant=args.variant) for v in views]
     manifest_path = root / MANIFEST_NAME
     check_outputs_spare_inputs([*(root / rel for rel in docs), *(p for t in tasks for p in t.paths()), manifest_path],
                                inputs)
     _check_writable({Path(p).parent for t in tasks for p in t.paths()} | {(root / rel).parent for rel in docs})
     if args.resume:                                  # before the camera files are rewritten
         try:
-            Manifest.open(manifest_path, job_signature(tasks, FPS), VERSION, resume=True)
+            manifest = Manifest.open(manifest_path, job_signature(tasks, FPS), VERSION, resume=True)
         except ValueError as exc:
             raise CLIError(str(exc)) from None
+        for t in tasks:                              # the signature has the cameras, not their times
+            record = manifest.get(t.scene, t.frame) or {}
+            if record.get("status") == "ok" and record.get("time") != t.time:
+                raise CLIError(f"--resume: {manifest_path}: view {t.frame} was rendered at time {record.get('time')}, "
+                               f"not {t.time:g}; render into another folder or drop --resume")
     for rel, text in docs.items():
         atomic_write(root / rel, lambda tmp, text=text: Path(tmp).write_text(text))
     result = run_job(args, tasks, manifest_path, FPS, f"{len(tasks)} view(s) of {scene_path} ({width}x{height}, "

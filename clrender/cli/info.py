@@ -40,11 +40,11 @@ def cmd_info(args) -> int:
         ("textures", s["textures"] if not s["texture_sizes"] else
          f"{s['textures']} ({', '.join(f'{w}x{h}' for w, h in s['texture_sizes'])})"),
         ("bounds", f"min ({fmt(s['bounds_min'])})  max ({fmt(s['bounds_max'])})"),
-        ("camera", "none (a default camera frames the bounds)" if s["camera"] is None else
-         f"eye ({fmt(s['camera']['eye'])})  target ({fmt(s['camera']['target'])})  " + (
-             f"orthographic xmag {s['camera']['xmag']:g} ymag {s['camera']['ymag']:g}"
-             if s["camera"].get("projection") == "orthographic" else f"fov {s['camera']['fov_y_deg']:g} deg")),
+        ("camera", "none (a default camera frames the bounds)" if s["camera"] is None else _camera_text(s["camera"])),
     ]
+    if s["cameras"]:        # every camera the file defines (Scene.cameras), the first is `camera`
+        lines.append(("cameras", len(s["cameras"])))
+        lines.extend((f"  {i}", f"{c['name']!r}  {_camera_text(c)}") for i, c in enumerate(s["cameras"]))
     render = scene.settings.get("render") if isinstance(scene.settings, dict) else None
     if render:
         lines.append(("render", ", ".join(f"{k} {v}" for k, v in render.items())))
@@ -56,6 +56,14 @@ def cmd_info(args) -> int:
     if gltf:
         print("\n".join(format_details(summary)))
     return 0
+
+
+def _camera_text(c: dict) -> str:
+    """One camera of Scene.summary() as text."""
+    fmt = lambda v: ", ".join(f"{x:g}" for x in v)  # noqa: E731
+    return f"eye ({fmt(c['eye'])})  target ({fmt(c['target'])})  " + (
+        f"orthographic xmag {c['xmag']:g} ymag {c['ymag']:g}" if c.get("projection") == "orthographic"
+        else f"fov {c['fov_y_deg']:g} deg")
 
 
 def _objects_line(objects: list) -> str:

@@ -183,6 +183,13 @@ def add_render_parser(sub) -> None:
     r.add_argument("--ortho", type=_half_height, metavar="HALF_HEIGHT",
                    help="an orthographic camera whose view box is 2·HALF_HEIGHT world units tall (its width "
                         "follows the image aspect)")
+    r.add_argument("--camera", metavar="FILE.json|FILE.toml",
+                   help="one image per camera of this camera file (`clrender view`'s saved views; "
+                        "docs/datasets.md), each at its camera's time, else --time: OUT is a directory "
+                        "(OUT/<scene-name>.NNNN.png, NNNN the camera's index from 0), a pattern with {camera} "
+                        "and/or {name} (the camera's name), or one image for a one-camera file; size: "
+                        "--width/--height, else the file's, else the scene's. Excludes --camera-eye, "
+                        "--camera-target, --fov, --ortho and --frames")
     r.add_argument("--bit-depth", type=int, choices=(8, 16), default=8, metavar="{8,16}",
                    help="bits per channel of the image (16: PNG only, from the tone-mapped float colour; default 8)")
     r.add_argument("--aov-sheet", action="store_true",

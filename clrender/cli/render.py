@@ -1,5 +1,6 @@
-"""`clrender render`: one still per scene (the frames and cluster route: clrender/cli/batch.py),
-the camera and environment flags, and the output plan checked before anything renders."""
+"""`clrender render`: one still per scene (the frames and cluster route: clrender/cli/batch.py; one
+image per camera of a camera file: clrender/cli/camera_route.py), the camera and environment
+flags, and the output plan checked before anything renders."""
 from __future__ import annotations
 
 import os
@@ -11,10 +12,11 @@ from typing import Optional, Sequence
 import numpy as np
 
 from clrender.batch.jobs import scene_size
-from clrender.cli.common import (
-    IMAGE_SUFFIXES, PROG, CLIError, OutputOverInput, _debug, _load, _note, _one_line, _scene_config,
+from clrender.cli.common import (  # noqa: F401  (the environment names: clrender.cli.render.X before they moved)
+    ENVIRONMENT_FLAGS, IMAGE_SUFFIXES, PROG, CLIError, OutputOverInput, _debug, _format_stats, _load, _note,
+    _one_line, _scene_config, apply_environment, describe_environment, environment_option,
     batch_requested, check_output_options, check_outputs_spare_inputs, check_writable, input_files,
-    render_options)
+    is_folder_output, one_image_output, render_options)
 from clrender.outputs.aov_io import aov_paths, write_outputs, write_video
 
 
@@ -43,60 +45,6 @@ def _camera(scene, args):
         raise CLIError(str(exc)) from None
 
 
-ENVIRONMENT_FLAGS = {"environment": "--environment", "environment_intensity": "--environment-intensity",
-                     "environment_rotation": "--environment-rotation"}
-
-
-def environment_option(args):
-    """--environment, loaded once for every scene: None (not given: each scene's own), "none", or
-    the Environment (with --environment-intensity/--environment-rotation)."""
-    text = getattr(args, "environment", None)
-    intensity = getattr(args, "environment_intensity", None)
-    rotation = getattr(args, "environment_rotation", None)
-    if text is None:
-        return None
-    if text.strip().lower() == "none":
-        if intensity is not None or rotation is not None:
-            raise CLIError("--environment-intensity/--environment-rotation: there is no environment with "
-                           "--environment none")
-        return "none"
-    from clrender.scene.environment import load_environment
-    try:
-        return load_environment(text, 1.0 if intensity is None else intensity, 0.0 if rotation is None else rotation)
-    except ValueError as exc:
-        raise CLIError(f"--environment: {_one_line(exc)}") from None
-
-
-def apply_environment(scene, args, environment) -> None:
-    """Put environment_option's result on a loaded scene: "none" removes the scene's environment
-    (a TOML table's, load_scene's default studio), an Environment replaces it; without
-    --environment, --environment-intensity/--environment-rotation change the scene's own (a
-    CLIError when it has none)."""
-    if isinstance(environment, str):                 # "none"
-        scene.set_environment(None)
-        return
-    if environment is not None:
-        if isinstance(scene.settings, dict):
-            scene.settings.pop("default_environment", None)
-        scene.environment = environment
-        return
-    intensity = getattr(args, "environment_intensity", None)
-    rotation = getattr(args, "environment_rotation", None)
-    if intensity is None and rotation is None:
-        return
-    if scene.environment is None:
-        flag = "--environment-intensity" if intensity is not None else "--environment-rotation"
-        raise CLIError(f"{flag}: {scene.source} has no environment to change (give --environment PATH|studio)")
-    scene.environment = scene.environment.with_params(intensity=intensity, rotation_deg=rotation)
-
-
-def describe_environment(scene) -> str:
-    """"environment: ..." for the per-scene line: none, the source, "studio (default: the file has no lights)"."""
-    from clrender.scene.environment import describe
-    settings = scene.settings if isinstance(scene.settings, dict) else {}
-    return describe(getattr(scene, "environment", None), default=bool(settings.get("default_environment")))
-
-
 def _plan_outputs(scenes: list[str], out: str) -> list[Path]:
     """One image path per scene, checked before anything is rendered."""
     n = len(scenes)
@@ -114,17 +62,10 @@ def _plan_outputs(scenes: list[str], out: str) -> list[Path]:
         if n > 1 and len({str(p) for p in paths}) == 1:
             raise CLIError(f"output pattern {out!r} gives the same file for every scene; use {{name}}")
         return paths
-    target = Path(out)
-    is_dir = target.is_dir() or out.endswith(("/", os.sep)) or target.suffix == ""
-    if not is_dir:
-        if target.suffix.lower() not in IMAGE_SUFFIXES:
-            raise CLIError(f"output {out!r}: unsupported image type {target.suffix!r} "
-                           f"(use {', '.join(IMAGE_SUFFIXES)}, a directory, or a pattern with {{name}})")
-        if n > 1:
-            raise CLIError(f"{n} scenes but one output file {out!r}: give a directory or a pattern "
-                           f"containing {{name}}")
-        return [target]
-    return [target / f"{Path(scene).stem}.png" for scene in scenes]
+    if not is_folder_output(out):
+        return one_image_output(out, n, f"{n} scenes but one output file {out!r}: give a directory or a pattern "
+                                        f"containing {{name}}", "{name}")
+    return [Path(out) / f"{Path(scene).stem}.png" for scene in scenes]
 
 
 def _check_distinct(scenes: list[str], images: list[Path], aovs: Sequence[str], exr: bool,
@@ -151,6 +92,9 @@ def cmd_render(args) -> int:
     from clrender.render.renderer import Renderer
 
     options = render_options(args)
+    if getattr(args, "camera", None) is not None:       # one image per camera of a camera file
+        from clrender.cli.camera_route import cmd_render_cameras
+        return cmd_render_cameras(args, options)
     if batch_requested(args):
         given = [flag for name, flag in ENVIRONMENT_FLAGS.items() if getattr(args, name, None) is not None]
         if given:
@@ -243,21 +187,3 @@ def cmd_render(args) -> int:
         print(f"{PROG}: error: {failures} of {n} scenes failed", file=sys.stderr, flush=True)
         return 1
     return 0
-
-
-def _format_stats(stats: dict) -> str:
-    from clrender.render.pipeline import pass_ms
-    parts = [f"{name[:-3]} {ms:.2f}" for name, ms in pass_ms(stats).items()]
-    text = "passes (ms): " + ", ".join(parts)
-    if "total_ms" in stats:
-        text += f"; total {stats['total_ms']:.2f}"
-    if "wall_ms" in stats:
-        host = ", ".join(f"{k[:-3]} {v:.1f}" for k, v in stats.get("host", {}).items())
-        text += f"; render() {stats['wall_ms']:.1f} (host: {host})"
-    extra = [f"{k} {stats[k]}" for k in ("prims", "tile_entries", "retries") if k in stats]
-    if "device_bytes" in stats:
-        extra.append(f"device {stats['device_bytes'] / 2**20:.1f} MiB")
-    if extra:
-        text += "; " + ", ".join(extra)
-    return text
-

@@ -30,7 +30,6 @@ from __future__ import annotations
 
 import json
 import math
-import tomllib
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Optional, Sequence
@@ -38,31 +37,21 @@ from typing import Optional, Sequence
 import numpy as np
 
 from clrender.scene.camera import Camera
+# Camera files moved to camera_file.py; their names stay importable from here.
+from clrender.dataset.camera_file import (  # noqa: F401  (re-exported)
+    CAMERA_KEYS, DEFAULT_FAR, DEFAULT_FOV_DEG, DEFAULT_NEAR, CameraFile, bounding_sphere, file_cameras, near_far,
+    read_camera_file)
 
 LAYOUTS = ("orbit", "sphere", "random")
 FORMATS = ("nerf", "colmap")
-DEFAULT_FOV_DEG = 50.0
 DEFAULT_ELEVATION_DEG = 20.0
 MARGIN = 1.1              # the bounding sphere fills 1/MARGIN of the narrower half field of view
-DEFAULT_NEAR, DEFAULT_FAR = 0.1, 100.0     # a foreign export's cameras (no dataset.json)
+# DEFAULT_NEAR, DEFAULT_FAR (camera_file): also a foreign export's cameras (no dataset.json)
 META_NAME, NERF_NAME, COLMAP_DIR = "dataset.json", "transforms.json", "sparse/0"
 COLMAP_FILES = ("cameras.txt", "images.txt", "points3D.txt")
-CAMERA_KEYS = {"eye", "target", "up", "fov_y_deg", "K", "R", "t", "near", "far"}
 
 
 # -- views ------------------------------------------------------------------------------------
-def bounding_sphere(bounds) -> tuple[np.ndarray, float]:
-    lo, hi = np.asarray(bounds, np.float64)
-    return (lo + hi) / 2, max(float(np.linalg.norm(hi - lo)) / 2, 1e-6)
-
-
-def near_far(eye, centre, radius: float) -> tuple[float, float]:
-    """Depth range holding the bounding sphere seen from `eye` (a margin each side)."""
-    dist = float(np.linalg.norm(np.subtract(eye, centre)))
-    far = (dist + radius) * 1.1
-    return max(0.9 * (dist - radius), 1e-3 * far), far
-
-
 def _up_for(direction: np.ndarray) -> tuple:
     # looking straight down or up: +Y is parallel to the view direction
     return (0.0, 0.0, -1.0) if abs(direction[1]) > 1.0 - 1e-9 else (0.0, 1.0, 0.0)
@@ -102,79 +91,6 @@ def layout_cameras(layout: str, n: int, bounds, width: int, height: int, fov_y_d
         eye = centre + d * distance
         near, far = near_far(eye, centre, radius)
         cameras.append(Camera.look_at(tuple(eye), tuple(centre), _up_for(d), fov_y_deg, near, far))
-    return cameras
-
-
-@dataclass(frozen=True)
-class CameraFile:
-    """A camera file: its entries (dicts of CAMERA_KEYS) and the image size its K are given for."""
-    path: str
-    entries: tuple
-    width: Optional[int] = None
-    height: Optional[int] = None
-
-
-def read_camera_file(path) -> CameraFile:
-    """A .json or .toml camera file (docs/datasets.md): {"width": W, "height": H, "cameras": [...]}
-    (TOML: [[cameras]] tables; JSON may also be a bare list). ValueError naming the file."""
-    path = Path(path)
-    try:
-        text = path.read_text()
-    except OSError as exc:
-        raise ValueError(f"--cameras {path}: cannot read it ({exc.strerror or exc})") from None
-    try:
-        data = tomllib.loads(text) if path.suffix.lower() == ".toml" else json.loads(text)
-    except (ValueError, tomllib.TOMLDecodeError) as exc:
-        raise ValueError(f"--cameras {path}: not valid {'TOML' if path.suffix.lower() == '.toml' else 'JSON'} "
-                         f"({str(exc).splitlines()[0]})") from None
-    except RecursionError:      # the parsers recurse per level of nesting
-        raise ValueError(f"--cameras {path}: nested too deeply to be a camera file") from None
-    if isinstance(data, list):
-        data = {"cameras": data}
-    entries = data.get("cameras") if isinstance(data, dict) else None
-    if not isinstance(entries, list) or not entries:
-        raise ValueError(f"--cameras {path}: expected a non-empty list \"cameras\" of camera tables")
-    size = [data.get("width"), data.get("height")]
-    if size != [None, None] and not all(isinstance(v, int) and not isinstance(v, bool) and v > 0 for v in size):
-        raise ValueError(f"--cameras {path}: width and height must both be positive integers, got {size}")
-    for i, e in enumerate(entries):
-        if not isinstance(e, dict):
-            raise ValueError(f"--cameras {path}: camera {i}: expected a table of keys, got {e!r}")
-        unknown = sorted(set(e) - CAMERA_KEYS)
-        if unknown:
-            raise ValueError(f"--cameras {path}: camera {i}: unknown key {unknown[0]!r} "
-                             f"(keys: {', '.join(sorted(CAMERA_KEYS))})")
-    return CameraFile(str(path), tuple(entries), size[0], size[1])
-
-
-def file_cameras(cf: CameraFile, bounds, width: int, height: int, fov_y_deg: float = DEFAULT_FOV_DEG) -> list[Camera]:
-    """The cameras of a camera file: eye/target[/up/fov_y_deg] or OpenCV K/R/t (K in pixels of the
-    file's width × height, else of the render size), near/far given or around the bounds."""
-    centre, radius = bounding_sphere(bounds)
-    kw, kh = (cf.width, cf.height) if cf.width else (width, height)
-    cameras = []
-    for i, e in enumerate(cf.entries):
-        try:
-            pinhole, look = {"K", "R", "t"} & set(e), {"eye", "target"} & set(e)
-            if (pinhole and look) or not (pinhole == {"K", "R", "t"} or look == {"eye", "target"}):
-                raise ValueError("give either eye and target (optionally up, fov_y_deg) or K, R and t")
-            if pinhole and ("up" in e or "fov_y_deg" in e):
-                raise ValueError("up and fov_y_deg go with eye/target, not with K/R/t")
-            if pinhole:
-                R, t = np.asarray(e["R"], np.float64), np.asarray(e["t"], np.float64)
-                eye = -R.T @ t if R.shape == (3, 3) and t.shape == (3,) else np.zeros(3)
-            else:
-                eye = e["eye"]
-            near, far = near_far(eye, centre, radius) if np.all(np.isfinite(eye)) else (DEFAULT_NEAR, DEFAULT_FAR)
-            near, far = e.get("near", near), e.get("far", far)
-            if pinhole:
-                cam = Camera.from_opencv(e["K"], e["R"], e["t"], kw, kh, near, far)
-            else:
-                cam = Camera(e["eye"], e["target"], e.get("up", (0.0, 1.0, 0.0)), e.get("fov_y_deg", fov_y_deg),
-                             near, far)
-        except (ValueError, TypeError) as exc:
-            raise ValueError(f"--cameras {cf.path}: camera {i}: {str(exc).splitlines()[0]}") from None
-        cameras.append(cam)
     return cameras
 
 
@@ -396,7 +312,7 @@ def export_documents(fmt: str, cameras: Sequence[Camera], width: int, height: in
     if fmt not in FORMATS:
         raise ValueError(f"unknown format {fmt!r} (use {', '.join(FORMATS)})")
     stored = [c.to_opencv(width, height) for c in cameras]
-    views = [{"index": i, **{k: v for k, v in f.items() if v}, "near": c.near, "far": c.far}
+    views = [{"index": i, **{k: v for k, v in f.items() if v or k == "time"}, "near": c.near, "far": c.far}
              for i, (c, f) in enumerate(zip(cameras, files))]
     docs = {META_NAME: json.dumps({**meta, "format": fmt, "width": width, "height": height, "views": views},
                                   indent=1) + "\n"}

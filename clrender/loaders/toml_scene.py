@@ -4,7 +4,8 @@ caller passes (clrender.loaders.load: `load_scene`, in the same load context).
 
 Order: every table is checked first (a typo fails before any mesh file is read), then each
 [[mesh]] loads, gets its materials' overrides and its transform, and the parts are concatenated
-into one Scene (one object per [[mesh]] entry); then camera, ambient, environment, [render],
+into one Scene (one object per [[mesh]] entry); then camera (`Scene.cameras`: [camera] as "camera", else
+the mesh files' cameras as "<mesh name>/<camera name>"), ambient, environment, [render],
 lights (the mesh files', [[light]], [lights] random), sun and keyframes.
 """
 from __future__ import annotations
@@ -45,16 +46,18 @@ def _transform_scene(scene: Scene, matrix: np.ndarray) -> Scene:
     if np.linalg.det(matrix[:3, :3]) < 0:
         scene.triangles = np.ascontiguousarray(scene.triangles[:, [0, 2, 1]])
     if scene.camera is not None:
-        c = scene.camera
-        eye, target = transform_points(matrix, [c.eye, c.target])
-        up = matrix[:3, :3] @ np.asarray(c.up)
-        scale = abs(np.linalg.det(matrix[:3, :3])) ** (1.0 / 3.0)
-        if c.is_orthographic:
-            scene.camera = Camera.orthographic(eye, target, up, c.xmag * scale, c.ymag * scale, c.near * scale,
-                                               c.far * scale)
-        else:
-            scene.camera = Camera.look_at(eye, target, up, c.fov_y_deg, c.near * scale, c.far * scale)
+        scene.camera = _moved_camera(scene.camera, matrix)
+    scene.cameras = [(name, _moved_camera(c, matrix)) for name, c in scene.cameras]
     return scene
+
+
+def _moved_camera(c: Camera, matrix: np.ndarray) -> Camera:
+    eye, target = transform_points(matrix, [c.eye, c.target])
+    up = matrix[:3, :3] @ np.asarray(c.up)
+    scale = abs(np.linalg.det(matrix[:3, :3])) ** (1.0 / 3.0)
+    if c.is_orthographic:
+        return Camera.orthographic(eye, target, up, c.xmag * scale, c.ymag * scale, c.near * scale, c.far * scale)
+    return Camera.look_at(eye, target, up, c.fov_y_deg, c.near * scale, c.far * scale)
 
 
 def _add_lights(path, scene: Scene, lights: list[dict]) -> None:
@@ -255,6 +258,9 @@ def load_toml(path, load_mesh: Callable[[Path], Scene]) -> Scene:
     if camera_track is not None:
         camera = camera_track.base       # a valid camera; posed at t = 0 below
     scene.camera = camera if camera is not None else next((s.camera for _, s in parts if s.camera is not None), None)
+    # [camera] (before any keyframes pose it), else the mesh files' cameras: scene.camera is the first
+    scene.cameras = [("camera", camera)] if camera is not None else [
+        (f"{label}/{name}", c) for label, s in parts for name, c in s.cameras]
     if ambient is not None:
         scene.ambient = ambient
     scene.environment = environment

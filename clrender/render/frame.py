@@ -205,9 +205,11 @@ class Frame:
         return out
 
     @cached_property
-    def _surface_triangle(self) -> np.ndarray:
-        """The nearest surface's triangle: the nearest transparent (BLEND or transmissive) fragment where
-        the A-buffer or depth peeling found one in front of the opaque surface, else triangle_id."""
+    def surface_triangle(self) -> np.ndarray:
+        """(H, W) int32 index into the scene's triangles, -1 on background: the nearest surface's
+        triangle, which object_id and material_id are derived from. That is the nearest transparent
+        (BLEND or transmissive) fragment where the A-buffer or depth peeling found one in front of
+        the opaque surface, else triangle_id (the opaque surface's)."""
         tri = self.triangle_id
         if "nearest_triangle" not in self.readback.names():
             return tri
@@ -215,7 +217,7 @@ class Frame:
         return np.where(nearest >= 0, nearest, tri)
 
     def _per_triangle(self, table: Optional[np.ndarray], what: str) -> np.ndarray:
-        tri = self._surface_triangle
+        tri = self.surface_triangle
         if table is None:
             raise ValueError(f"this Frame carries no per-triangle {what} table (frames from Renderer.render do)")
         out = np.full(tri.shape, -1, np.int32)

@@ -167,6 +167,10 @@ class Scene(SceneMotion):
     source_files: tuple = ()                    # resolved Paths load_scene read (the scene file, its buffers,
                                                 # textures, MTL, TOML meshes, environment): outputs must not be one
     material_variants: Optional[MaterialVariants] = None  # glTF KHR_materials_variants (set_variant); None: none
+    cameras: list = field(default_factory=list)  # (name, Camera) per camera the file defines, in order (glTF:
+                                                # each usable camera node in traversal order; TOML: [camera], else
+                                                # its mesh files'); `camera` is the first at load. Rest pose:
+                                                # animations move `camera` only. Empty: arrays, OBJ, PLY, STL
 
     def __post_init__(self):
         self.positions = np.ascontiguousarray(self.positions, dtype=np.float32).reshape(-1, 3)
@@ -438,6 +442,10 @@ class Scene(SceneMotion):
             raise SceneError(f"{where}: objects must be SceneObject records")
         if self.material_variants is not None:
             self.material_variants.check(len(self.mesh_names), len(self.materials), where)
+        for i, entry in enumerate(self.cameras):
+            if not (isinstance(entry, tuple) and len(entry) == 2 and isinstance(entry[0], str)
+                    and isinstance(entry[1], Camera)):
+                raise SceneError(f"{where}: cameras[{i}] must be a (name, Camera) pair, got {entry!r}")
         for name, shape in (("colors", (nv, 4)), ("tangents", (nv, 4))):
             a = getattr(self, name)
             if a is not None and (np.shape(a) != shape or not np.isfinite(a).all()):
@@ -469,8 +477,12 @@ class Scene(SceneMotion):
             "single_sided_materials": sum(not m.double_sided for m in self.materials),
             "bounds_min": lo.tolist(),
             "bounds_max": hi.tolist(),
-            "camera": None if self.camera is None else {
-                "eye": self.camera.eye, "target": self.camera.target,
-                **({"projection": "orthographic", "xmag": self.camera.xmag, "ymag": self.camera.ymag}
-                   if self.camera.is_orthographic else {"fov_y_deg": self.camera.fov_y_deg})},
+            "camera": None if self.camera is None else _camera_summary(self.camera),
+            "cameras": [{"name": name, **_camera_summary(cam)} for name, cam in self.cameras],
         }
+
+
+def _camera_summary(cam: Camera) -> dict:
+    return {"eye": cam.eye, "target": cam.target,
+            **({"projection": "orthographic", "xmag": cam.xmag, "ymag": cam.ymag}
+               if cam.is_orthographic else {"fov_y_deg": cam.fov_y_deg})}

@@ -50,9 +50,10 @@ Also:
   `spec.SUPPORTED_EXTENSIONS` (in extensionsUsed or on any object) -- is collected while
   loading and warned ONCE per file and feature at the end; the rest loads. An extension outside
   that set in extensionsRequired is a SceneError naming it;
-* the camera is the first camera in traversal order, perspective (`yfov`, `znear`, `zfar`) or
-  orthographic (`xmag`, `ymag`, `znear`, `zfar` -> `Camera.orthographic`: like glTF viewers, the
-  image's aspect decides the horizontal extent, ymag·width/height; xmag is kept);
+* cameras: `Scene.cameras` holds every camera node in traversal order (name: the node's, else the
+  camera's, else "camera <index>"), perspective (`yfov`, `znear`, `zfar`) or orthographic (`xmag`,
+  `ymag`, `znear`, `zfar` -> `Camera.orthographic`: like glTF viewers, the image's aspect decides the
+  horizontal extent, ymag·width/height; xmag is kept); the camera is the first of them;
 * `KHR_lights_punctual` (clrender/loaders/gltf/punctual.py): every node of the default scene that
   references a light adds one light, in traversal order, placed by the node's world matrix (from the JSON
   matrix / TRS): position = the transformed origin, direction = the transformed local -Z,
@@ -117,40 +118,55 @@ def _traversal(doc: Document) -> list[int]:
     return order
 
 
-# -- camera ------------------------------------------------------------------------------------------------
-def _camera(doc: Document, order: list[int], geometry, scene: Scene) -> Optional[Camera]:
+# -- cameras -----------------------------------------------------------------------------------------------
+def _cameras(doc: Document, order: list[int], geometry, scene: Scene, notes: dict) -> list:
+    """Every usable camera node of the default scene in traversal order, as (name, Camera): name =
+    the node's, else the camera's, else "camera <index>". The first is `scene.camera`, and an unusable
+    first camera is a SceneError as it always was; a later unusable one (which loads never read
+    before) is left out with a warning, so that a file that loaded still loads."""
     nodes = doc.list("nodes")
+    out: list = []
     for n in order:
         if "camera" not in nodes[n]:
             continue
-        cam = doc.json["cameras"][nodes[n]["camera"]]
+        index = nodes[n]["camera"]
+        cam = doc.json["cameras"][index]
         kind = cam.get("type")
         if kind not in ("perspective", "orthographic") or kind not in cam:
             continue  # not a camera this loader knows
-        persp = cam[kind]
         try:
-            matrix = geometry.node_matrix(n)
-            eye = matrix[:3, 3]
-            forward = -matrix[:3, 2]
-            up = matrix[:3, 1]
-            norm = np.linalg.norm(forward)
-            if kind == "orthographic":
-                return Camera.orthographic(eye, eye + forward / norm, up, xmag=float(persp["xmag"]),
-                                           ymag=float(persp["ymag"]), near=float(persp["znear"]),
-                                           far=float(persp["zfar"]))
-            znear = float(persp["znear"])
-            zfar = persp.get("zfar")
-            if zfar is None:
-                lo, hi = scene.bounds().astype(np.float64)
-                corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1])
-                                    for z in (lo[2], hi[2])])
-                reach = float(np.linalg.norm(corners - eye, axis=1).max()) if scene.triangle_count else 0.0
-                zfar = max(FAR_FROM_NEAR * znear, 2.0 * reach)
-            return Camera.look_at(eye, eye + forward / norm, up, np.degrees(float(persp["yfov"])),
-                                  near=znear, far=float(zfar))
+            camera = _node_camera(n, kind, cam[kind], geometry, scene)
         except (KeyError, TypeError, ValueError, ZeroDivisionError, FloatingPointError) as exc:
-            raise doc.err(f"camera {nodes[n]['camera']} (node {n}) is not usable: {exc}") from None
-    return None
+            message = f"camera {index} (node {n}) is not usable: {exc}"
+            if not out:
+                raise doc.err(message) from None
+            notes[message] = "left out of the scene's cameras"
+            continue
+        name = nodes[n].get("name") or cam.get("name") or f"camera {index}"
+        out.append((str(name), camera))
+    return out
+
+
+def _node_camera(n: int, kind: str, persp: dict, geometry, scene: Scene) -> Camera:
+    matrix = geometry.node_matrix(n)
+    eye = matrix[:3, 3]
+    forward = -matrix[:3, 2]
+    up = matrix[:3, 1]
+    norm = np.linalg.norm(forward)
+    if kind == "orthographic":
+        return Camera.orthographic(eye, eye + forward / norm, up, xmag=float(persp["xmag"]),
+                                   ymag=float(persp["ymag"]), near=float(persp["znear"]),
+                                   far=float(persp["zfar"]))
+    znear = float(persp["znear"])
+    zfar = persp.get("zfar")
+    if zfar is None:
+        lo, hi = scene.bounds().astype(np.float64)
+        corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1])
+                            for z in (lo[2], hi[2])])
+        reach = float(np.linalg.norm(corners - eye, axis=1).max()) if scene.triangle_count else 0.0
+        zfar = max(FAR_FROM_NEAR * znear, 2.0 * reach)
+    return Camera.look_at(eye, eye + forward / norm, up, np.degrees(float(persp["yfov"])),
+                          near=znear, far=float(zfar))
 
 
 # -- vertex attributes and unsupported features ------------------------------------------------------------
@@ -441,7 +457,8 @@ def _geometry(doc: Document, path: Path, order: list[int], features: dict, notes
         firsts = np.cumsum([0] + [len(p.positions) for p in pieces])
         deformation.attach({d.mesh: firsts[d.mesh] for d in deformers})
         scene.deformation = deformation
-    scene.camera = _camera(doc, order, geometry, scene)
+    scene.cameras = _cameras(doc, order, geometry, scene, notes)
+    scene.camera = scene.cameras[0][1] if scene.cameras else None
     if animation is not None:
         gltf_animation.bind(animation, doc, order, scene)
         scene.animation = animation
