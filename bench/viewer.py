@@ -55,6 +55,7 @@ from pathlib import Path
 import numpy as np
 
 from bench.common import REPO, SPONZA, write_record
+from clrender.dataset.views import quaternion_from_rotation
 
 DEMO = REPO / "scenes" / "demo.toml"
 # An orbit inside Sponza's atrium (world units): the eye swings on an ellipse round the atrium's
@@ -152,12 +153,9 @@ def look_at_wxyz(eye, target, up=(0.0, 1.0, 0.0)) -> tuple:
     """viser's camera orientation (OpenCV axes: x right, y down, z forward) as a quaternion wxyz."""
     z = np.asarray(target, np.float64) - eye
     z /= np.linalg.norm(z)
-    x = np.cross(z, -np.asarray(up, np.float64))
+    x = np.cross(z, np.asarray(up, np.float64))          # right
     x /= np.linalg.norm(x)
-    y = np.cross(z, x)
-    m = np.stack([x, y, z], 1)
-    w = math.sqrt(max(0.0, 1.0 + m[0, 0] + m[1, 1] + m[2, 2])) / 2
-    return (w, (m[2, 1] - m[1, 2]) / (4 * w), (m[0, 2] - m[2, 0]) / (4 * w), (m[1, 0] - m[0, 1]) / (4 * w))
+    return tuple(quaternion_from_rotation(np.stack([x, np.cross(z, x), z], 1)))     # y = z × x: down
 
 
 class DirectDrive:

@@ -11,8 +11,6 @@ import time
 from clrender.cli.common import PROG, CLIError, _load, _note, _one_line, _scene_config, allowed_folders, render_options
 from clrender.cli.parser import _positive_int, add_render_options
 
-LOCAL_HOSTS = ("127.0.0.1", "localhost", "::1")
-
 
 def add_parser(sub) -> None:
     v = sub.add_parser("view", help="look at a scene in the browser, pick the shots, save them for render/dataset",
@@ -40,7 +38,7 @@ def cmd_view(args) -> int:
     from clrender.viewer import VIEW_MISSING, view, viser_available
     if not viser_available():
         raise CLIError(VIEW_MISSING)
-    from clrender.viewer.server import check_port
+    from clrender.viewer.server import LOCAL_HOSTS, check_port
     args.scenes = [args.scene]
     options = render_options(args)
     if (args.width is None) != (args.height is None):

@@ -19,6 +19,7 @@ environment) must lie in the scene's folder or one the command line allowed.
 from __future__ import annotations
 
 import contextlib
+import errno
 import io
 import math
 import socket
@@ -32,11 +33,12 @@ import numpy as np
 from clrender.config import RenderConfig, check_int
 from clrender.dataset.camera_file import (
     DEFAULT_FOV_DEG, append_camera, bounding_sphere, camera_entry, entry_camera, near_far, read_camera_file)
+from clrender.dataset.views import rotation_from_quaternion
 from clrender.scene.camera import Camera
 from clrender.viewer.pick import highlight, pick, pick_markdown
 from clrender.viewer.session import PREVIEW_SCALE, RenderLoop, Renderers, ViewState, preview_config, preview_size
 
-LOCAL_HOSTS = ("127.0.0.1", "localhost", "::1")
+LOCAL_HOSTS = ("127.0.0.1", "localhost", "::1")      # no warning for these (clrender/cli/view.py)
 FOLLOW_MAX = (3840, 2160)       # the page's own size is followed up to this (a larger window: scaled down)
 ENVIRONMENT_SUFFIXES = (".exr", ".hdr", ".pic")
 PLAY_RATE_S = 0.1               # the animation's time advances this often while playing
@@ -58,15 +60,8 @@ def check_port(host: str, port: int) -> None:
         try:
             s.bind((host, port))
         except OSError as exc:
-            reason = "in use" if exc.errno in (98, 48) else (exc.strerror or str(exc))
+            reason = "in use" if exc.errno == errno.EADDRINUSE else (exc.strerror or str(exc))
             raise PortInUse(f"port {port} on {host} is {reason} (choose another with --port)") from None
-
-
-def _rotation(wxyz) -> np.ndarray:
-    w, x, y, z = np.asarray(wxyz, np.float64) / np.linalg.norm(wxyz)
-    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-                     [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-                     [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
 
 
 def _close(a, b, scale: float) -> bool:
@@ -189,7 +184,7 @@ class Viewer:
         if (pinned is not None and _close(eye, pinned.eye, scale) and _close(target, pinned.target, scale)
                 and abs(math.degrees(float(handle.fov)) - pinned.fov_y_deg) < 1e-6):
             return pinned                                   # the page shows the listed camera (it stays pinned)
-        up = -_rotation(handle.wxyz)[:, 1]                 # OpenCV's y is down
+        up = -rotation_from_quaternion(handle.wxyz)[:, 1]  # OpenCV axes: y is down
         near, far = near_far(eye, self.centre, self.radius)
         w, h = self._size(handle)
         try:
