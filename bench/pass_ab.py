@@ -33,13 +33,19 @@ def main(argv=None):
 
     renderers = {}
     if args.baseline is not None:
-        current = dv.kernels_dir
-        dv.kernels_dir = lambda: args.baseline          # read when the passes build their kernels
-        try:
-            renderers["baseline"] = clrender.Renderer(*args.size)
-        finally:
-            dv.kernels_dir = current
+        renderers["baseline"] = clrender.Renderer(*args.size)
     renderers["current"] = clrender.Renderer(*args.size)
+    current_dir = dv.kernels_dir
+
+    def render(name, scene, camera):
+        """Programs build lazily (at a pass's first launch): the baseline's frames run with
+        kernels_dir pointing at the baseline copy, so whatever they build comes from there."""
+        if name == "baseline":
+            dv.kernels_dir = lambda: args.baseline
+        try:
+            return renderers[name].render(scene, camera)
+        finally:
+            dv.kernels_dir = current_dir
 
     scene = clrender.load_scene(require_scene(SPONZA))
     camera = clrender.Camera.look_at(**SPONZA_CAMERA)
@@ -49,7 +55,7 @@ def main(argv=None):
     for n in args.lights:
         scene.lights = base.copy()
         scene.add_random_lights(n, seed=1, radius=(radius, radius), intensity=1.0)
-        frames = {k: r.render(scene, camera) for k, r in renderers.items()}     # warm-up (builds)
+        frames = {k: render(k, scene, camera) for k in renderers}     # warm-up (builds)
         if "baseline" in frames:
             a, b = frames["baseline"], frames["current"]
             err = float(np.abs(a.color - b.color).max() / max(float(a.color.max()), 1e-30))
@@ -57,8 +63,8 @@ def main(argv=None):
                   f"color identical {np.array_equal(a.color, b.color)}, max |diff| / peak {err:.3g}")
         samples = {k: [] for k in renderers}
         for _ in range(args.repeats):
-            for k, r in renderers.items():
-                samples[k].append(pass_ms(r.render(scene, camera).stats))
+            for k in renderers:
+                samples[k].append(pass_ms(render(k, scene, camera).stats))
         print(f"{n} lights, medians of {args.repeats} (ms):")
         for p in samples["current"][0]:
             row = "  ".join(f"{k} {statistics.median(s[p] for s in samples[k]):8.2f}" for k in renderers)

@@ -196,6 +196,11 @@ OPTIONS: tuple[Option, ...] = (
            help="shadow atlas side limit in texels: maps that do not fit are an error, never dropped"),
     Option("shadow_map_reuse", bool, True, flag=None,
            help="keep a map whose light view and scene are unchanged since the last frame"),
+    Option("decoded_textures_mb", int, 0, range=(0, 2**20), unit="MiB", flag=None,
+           help="memory for the textures kept decoded to float on CPUs (16 bytes a texel, 4x the RGBA8 pool: "
+                "Sponza 695 MiB), read by the G-buffer resolve instead of decoding each sample (same bits); "
+                "0: off, as a scene needing more (2-core AVX2 EPYC, all three CPU implementations: the resolve "
+                "within 3 % either way, docs/benchmarks.md; default {default})"),
     Option("chunk_cull", bool, True, flag=None,
            help="setup skips chunks of 128 triangles a view cannot see (passes/chunk_cull.py; bit-identical)"),
     Option("transparency", str, "abuffer", choices=TRANSPARENCY,

@@ -35,7 +35,7 @@ typedef struct {
     global const float* uvs;          /* uv sets one after another: set k of vertex i at 2 (k·n_vertices + i) */
     global const int* triangles;
     global const Material* materials;
-    global const uint* texels;
+    global const texel_t* texels;     /* the texture pool (texture_vec.h TEXELS_LINEAR) */
     constant float* srgb_lut;         /* texel decode tables (LUT_SRGB, LUT_LINEAR) */
     global const TexInfo* tex_infos;
     global const TexLevel* tex_levels;
@@ -49,7 +49,7 @@ typedef struct {
 #define SCENE_PARAMS(prims) \
     global const Prim* prims, global const float* positions, global const float* normals, \
     global const float* uvs, global const int* triangles, global const Material* materials, \
-    global const uint* texels, constant float* srgb_lut, global const TexInfo* tex_infos, \
+    global const texel_t* texels, constant float* srgb_lut, global const TexInfo* tex_infos, \
     global const TexLevel* tex_levels, global const float* tangents, global const float* colors, \
     int n_vertices, int has_colors
 #define SCENE_INIT(prims) { prims, positions, normals, uvs, triangles, materials, texels, srgb_lut, tex_infos, \

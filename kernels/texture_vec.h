@@ -14,6 +14,21 @@
 #include "structs.h"
 #include "vec.h"
 
+/* TEXELS_LINEAR 1: the pool holds every texel decoded, float4 linear RGBA (R, G, B through the
+ * texture's own table, A = byte · (1/255): the values the RGBA8 path computes per sample), so a
+ * sample is four float4 loads per lane instead of a word and three table lookups
+ * (clrender/render/texture_pool.py linear_texels; lut0 and LINEAR then go unused: the host reads a
+ * slot through another texture's footprint only in that texture's own colour space). 0: RGBA8
+ * words, decoded per sample. */
+#ifndef TEXELS_LINEAR
+#define TEXELS_LINEAR 0
+#endif
+#if TEXELS_LINEAR
+typedef float4 texel_t;
+#else
+typedef uint texel_t;
+#endif
+
 /* GATHER_MS/TS/FS/IS: GATHER_M/T/F/I (vec.h) for the scene's per-prim, per-vertex and
  * per-material records, which a run's lanes mostly share (one triangle covers the run): where
  * every lane's index is the same, one scalar load broadcast instead of VEC lane-by-lane loads
@@ -78,12 +93,18 @@ static inline VINLINE BilinearV bilinear_at(intV offset, intV width, intV height
  * texture with the same mip chain sizes). R, G, B bytes decode through lut[lut0 + byte] (sRGB or
  * linear table: structs.h LUT_*) or, with LINEAR, as byte / 255 (the LUT_LINEAR table's values,
  * computed); inactive lanes read texel 0. */
-static inline VINLINE rgbaV bilinear_fetch(global const uint* texels, constant float* lut, intV lut0, int linear,
+static inline VINLINE rgbaV bilinear_fetch(global const texel_t* texels, constant float* lut, intV lut0, int linear,
                                    intV active, const BilinearV* q, intV delta)
 {
     rgbaV t[4];
     for (int k = 0; k < 4; ++k) {
         intV i = select((intV)0, q->idx[k] + delta, active);
+#if TEXELS_LINEAR
+        t[k].r = GATHER_M(floatV, texels, i, x);
+        t[k].g = GATHER_M(floatV, texels, i, y);
+        t[k].b = GATHER_M(floatV, texels, i, z);
+        t[k].a = GATHER_M(floatV, texels, i, w);
+#else
         uintV w = GATHER_U(texels, i);
         if (linear) {
             t[k].r = convert_floatV(w & 255u) / 255.0f;
@@ -95,6 +116,7 @@ static inline VINLINE rgbaV bilinear_fetch(global const uint* texels, constant f
             t[k].b = GATHER_F(lut, lut0 + as_intV((w >> 16) & 255u));
         }
         t[k].a = convert_floatV(w >> 24) * (1.0f / 255.0f);
+#endif
     }
     rgbaV r;
     const floatV ax = q->ax, ay = q->ay;
@@ -159,7 +181,7 @@ static inline FootprintV footprint(global const TexInfo* tex_infos, global const
 
 /* The footprint fp filtered in the texture `delta` texels after fp's (same mip chain sizes and
  * wrap modes), decoded through lut0 or, with LINEAR, arithmetically. */
-static inline rgbaV footprint_fetch(global const uint* texels, constant float* lut, intV lut0, int linear,
+static inline rgbaV footprint_fetch(global const texel_t* texels, constant float* lut, intV lut0, int linear,
                                     const FootprintV* fp, intV delta)
 {
     rgbaV ta = bilinear_fetch(texels, lut, lut0, linear, fp->active, &fp->a, delta);
@@ -172,7 +194,7 @@ static inline rgbaV footprint_fetch(global const uint* texels, constant float* l
 }
 
 /* Trilinear sample of texture tex: footprint() then footprint_fetch() through its own table. */
-static inline rgbaV trilinearV(global const uint* texels, constant float* lut, global const TexInfo* tex_infos,
+static inline rgbaV trilinearV(global const texel_t* texels, constant float* lut, global const TexInfo* tex_infos,
                                global const TexLevel* tex_levels, intV tex, intV active,
                                floatV u, floatV v, floatV dux, floatV dvx, floatV duy, floatV dvy, FootprintV* fp)
 {

@@ -131,4 +131,154 @@ typedef CAT(double, VEC) doubleV;
  * on 23% of inputs), which moved G-buffer normals by a 12-bit code between implementations. */
 #define RSQRT(x) (1.0f / sqrt(x))
 
+/* Inline builtins on CPUs (VEC > 1). Pip's PoCL 3.0 (LLVM 14) compiles a kernel for the host CPU
+ * (e.g. target-cpu znver3) but links its builtin library built for a generic level (haswell);
+ * LLVM will not inline across different target CPUs, so every select, fmax, any... stayed an
+ * out-of-line call that spills all live vectors (G-buffer resolve +58%, raster, shade +50%).
+ * Written here with operators, these compute exactly PoCL's bits: select tests the mask's sign
+ * bit like the ternary; fmax(a, b) = maxps(a, b) unless b is NaN (fmin likewise, clamp =
+ * fmin(fmax)); fabs clears the sign; any/all test the lanes' sign bits. Only for LLVM 14 and
+ * older: where PoCL's library inlines (Debian's PoCL 3.1, LLVM 15) they measured slower (raster
+ * and shade +12-14%; the ternary's and/or form spills more than a select); not for SPIR compilers
+ * (Intel's CPU runtime), whose backend inlines its own builtins. */
+#if VEC > 1 && defined(__clang__) && !defined(__SPIR__) && __clang_major__ < 15
+#define CL_OVL static inline __attribute__((overloadable, always_inline))
+#undef select
+#define select(a, b, c) ((c) ? (b) : (a))
+/* maxps(a, b) = a > b ? a : b; PoCL's 8-wide fmax is maxps, then b where b is NaN */
+#if VEC == 8 && defined(__AVX__) && __has_builtin(__builtin_ia32_maxps256)
+CL_OVL floatV clr_maxps(floatV a, floatV b) { floatV m = __builtin_ia32_maxps256(a, b); return m; }
+CL_OVL floatV clr_minps(floatV a, floatV b) { floatV m = __builtin_ia32_minps256(a, b); return m; }
+#else
+CL_OVL floatV clr_maxps(floatV a, floatV b) { return a > b ? a : b; }
+CL_OVL floatV clr_minps(floatV a, floatV b) { return a < b ? a : b; }
+#endif
+#define CL_FMINMAX(T, S)                                                                          \
+    CL_OVL T clr_fmax(T a, T b) { return b != b ? a : clr_maxps(a, b); }                         \
+    CL_OVL T clr_fmin(T a, T b) { return b != b ? a : clr_minps(a, b); }                         \
+    CL_OVL T clr_fmax(T a, S b) { return clr_fmax(a, (T)b); }                                    \
+    CL_OVL T clr_fmin(T a, S b) { return clr_fmin(a, (T)b); }                                    \
+    CL_OVL T clr_clamp(T x, T lo, T hi) { return clr_fmin(clr_fmax(x, lo), hi); }                \
+    CL_OVL T clr_clamp(T x, S lo, S hi) { return clr_fmin(clr_fmax(x, (T)lo), (T)hi); }
+#define CL_MINMAX(T, S)                                                                           \
+    CL_OVL T clr_max(T a, T b) { return a > b ? a : b; }                                          \
+    CL_OVL T clr_min(T a, T b) { return b < a ? b : a; }                                          \
+    CL_OVL T clr_max(T a, S b) { return clr_max(a, (T)b); }                                      \
+    CL_OVL T clr_min(T a, S b) { return clr_min(a, (T)b); }                                      \
+    CL_OVL T clr_clamp(T x, T lo, T hi) { return clr_min(clr_max(x, lo), hi); }                  \
+    CL_OVL T clr_clamp(T x, S lo, S hi) { return clr_min(clr_max(x, (T)lo), (T)hi); }
+#define CL_SFMINMAX(T)                                                                            \
+    CL_OVL T clr_fmax(T a, T b) { return (a > b || b != b) ? a : b; }                            \
+    CL_OVL T clr_fmin(T a, T b) { return (a < b || b != b) ? a : b; }                            \
+    CL_OVL T clr_clamp(T x, T lo, T hi) { return clr_fmin(clr_fmax(x, lo), hi); }
+CL_SFMINMAX(float)
+#if RASTER_FP64                         /* scalar doubles must not narrow to the float overloads */
+CL_SFMINMAX(double)
+CL_OVL double clr_fabs(double x) { return as_double(as_ulong(x) & 0x7fffffffffffffffUL); }
+#endif
+CL_FMINMAX(floatV, float)
+#define CL_SMINMAX(T)                                                                             \
+    CL_OVL T clr_max(T a, T b) { return a > b ? a : b; }                                          \
+    CL_OVL T clr_min(T a, T b) { return b < a ? b : a; }                                          \
+    CL_OVL T clr_clamp(T x, T lo, T hi) { return clr_min(clr_max(x, lo), hi); }
+CL_SMINMAX(int) CL_SMINMAX(uint) CL_SMINMAX(long) CL_SMINMAX(ulong)
+CL_MINMAX(intV, int) CL_MINMAX(uintV, uint)
+CL_OVL float clr_fabs(float x) { return as_float(as_uint(x) & 0x7fffffffu); }
+CL_OVL floatV clr_fabs(floatV x) { return as_floatV(as_uintV(x) & 0x7fffffffu); }
+CL_OVL int clr_any(intV m) {
+#if VEC == 16
+    int8 t8 = m.lo | m.hi;
+    int4 t4 = t8.lo | t8.hi;
+#elif VEC == 8
+    int4 t4 = m.lo | m.hi;
+#else
+    int4 t4 = m;
+#endif
+    int2 t2 = t4.lo | t4.hi;
+    return (t2.x | t2.y) < 0;
+}
+CL_OVL int clr_all(intV m) {
+#if VEC == 16
+    int8 t8 = m.lo & m.hi;
+    int4 t4 = t8.lo & t8.hi;
+#elif VEC == 8
+    int4 t4 = m.lo & m.hi;
+#else
+    int4 t4 = m;
+#endif
+    int2 t2 = t4.lo & t4.hi;
+    return (t2.x & t2.y) < 0;
+}
+/* vloadN/vstoreN: a plain vector access at element alignment (one unaligned move). Every element
+ * type has its overload: C overloading would otherwise convert a mismatched pointer silently. */
+#define CL_VLS_AS(T, N, AS)                                                                       \
+    CL_OVL T##N clr_vload##N(size_t i, AS const T* p) { return *(AS const T##N##_u*)(p + i * N); } \
+    CL_OVL void clr_vstore##N(T##N v, size_t i, AS T* p) { *(AS T##N##_u*)(p + i * N) = v; }
+#define CL_VLS(T, N)                                                                              \
+    typedef T##N T##N##_u __attribute__((aligned(sizeof(T))));                                   \
+    CL_VLS_AS(T, N, global) CL_VLS_AS(T, N, local) CL_VLS_AS(T, N, private)                       \
+    CL_OVL T##N clr_vload##N(size_t i, constant T* p) { return *(constant T##N##_u*)(p + i * N); }
+#define CL_VLS_T(T) CL_VLS(T, 2) CL_VLS(T, 4) CL_VLS(T, 8) CL_VLS(T, 16)
+CL_VLS_T(char) CL_VLS_T(uchar) CL_VLS_T(short) CL_VLS_T(ushort) CL_VLS_T(int) CL_VLS_T(uint)
+CL_VLS_T(long) CL_VLS_T(ulong) CL_VLS_T(float)
+#if RASTER_FP64
+CL_VLS_T(double)
+#endif
+/* floor and (correctly rounded) sqrt as the LLVM operations PoCL's library calls wrap. */
+#if __has_builtin(__builtin_elementwise_floor)
+CL_OVL float clr_floor(float x) { return __builtin_elementwise_floor(x); }
+CL_OVL floatV clr_floor(floatV x) { return __builtin_elementwise_floor(x); }
+#if RASTER_FP64
+CL_OVL double clr_floor(double x) { return __builtin_elementwise_floor(x); }
+#endif
+#undef floor
+#define floor clr_floor
+#endif
+#if VEC == 8 && defined(__AVX__) && __has_builtin(__builtin_ia32_sqrtps256)
+CL_OVL float clr_sqrt(float x) { return __builtin_sqrtf(x); }
+CL_OVL floatV clr_sqrt(floatV x) { return __builtin_ia32_sqrtps256(x); }
+#if RASTER_FP64
+CL_OVL double clr_sqrt(double x) { return __builtin_sqrt(x); }
+#endif
+#undef sqrt
+#define sqrt clr_sqrt
+#endif
+#undef vloadV                           /* CAT(vload, VEC) expands PoCL's vload macro first */
+#undef vstoreV
+#define vloadV CAT(clr_vload, VEC)
+#define vstoreV CAT(clr_vstore, VEC)
+#undef vload2
+#undef vload4
+#undef vload8
+#undef vload16
+#undef vstore2
+#undef vstore4
+#undef vstore8
+#undef vstore16
+#define vload2 clr_vload2
+#define vload4 clr_vload4
+#define vload8 clr_vload8
+#define vload16 clr_vload16
+#define vstore2 clr_vstore2
+#define vstore4 clr_vstore4
+#define vstore8 clr_vstore8
+#define vstore16 clr_vstore16
+#undef fmax
+#undef fmin
+#undef clamp
+#undef max
+#undef min
+#undef fabs
+#undef any
+#undef all
+#define fmax clr_fmax
+#define fmin clr_fmin
+#define clamp clr_clamp
+#define max clr_max
+#define min clr_min
+#define fabs clr_fabs
+#define any clr_any
+#define all clr_all
+#endif
+
 #endif

@@ -53,6 +53,7 @@ KERNEL_EXCEPTIONS = {
     "scan.cl": ("the prefix sum is a device service that passes call", "clrender/device/scan.py"),
     "timestamp.cl": ("pass-time stamps are a device service", "clrender/device/timestamps.py"),
     "mipmap.cl": ("mip chains are built by the texture pool at upload", "clrender/render/texture_pool.py"),
+    "texel_decode.cl": ("the texture pool's decoded copy, made at a scene's first frame", "clrender/render/texture_pool.py"),
 }
 PASS_EXCEPTIONS = {
     "base.py": ("the pass contract (RenderPass, Resources) the pipeline wires", "clrender/render/pipeline.py"),

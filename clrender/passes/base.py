@@ -48,13 +48,40 @@ SCENE_INPUTS = ("positions", "normals", "uvs", "triangles", "materials", "texels
                 "tex_levels", "tangents", "colors", "n_vertices", "has_colors")
 
 
-def scene_args(res: Resources, prims) -> tuple:
-    """Kernel arguments for SCENE_PARAMS(prims): the prims buffer, then the SCENE_INPUTS."""
+def scene_args(res: Resources, prims, texels_linear: bool = False) -> tuple:
+    """Kernel arguments for SCENE_PARAMS(prims): the prims buffer, then the SCENE_INPUTS (the
+    decoded texture pool for a program built with TEXELS_LINEAR 1)."""
     args = [prims.data]
     for name in SCENE_INPUTS:
-        v = res[name]
+        v = res["texels_linear" if texels_linear and name == "texels" else name]
         args.append(np.int32(v) if name in ("n_vertices", "has_colors") else v.data)
     return tuple(args)
+
+
+class SceneKernel:
+    """A kernel over SCENE_PARAMS, built for the texture pool a frame samples: RGBA8 words or the
+    decoded floats (kernels/texture_vec.h TEXELS_LINEAR, clrender/render/texture_pool.py
+    linear_texels). The pipeline selects the format before the frame's programs are built
+    (RenderPass.use_texel_format), so only the variant in use is made and built."""
+
+    def __init__(self, device, filename: str, name: str, defines: dict):
+        self.device, self.filename, self.name, self.defines = device, filename, name, dict(defines)
+        self.variants: dict = {}
+        self.linear = False
+
+    def select(self, linear: bool) -> None:
+        self.linear = bool(linear)
+        if self.linear not in self.variants:
+            self.variants[self.linear] = self.device.kernel(self.filename, self.name,
+                                                            {**self.defines, "TEXELS_LINEAR": int(self.linear)})
+
+    def scene_args(self, res: "Resources", prims) -> tuple:
+        return scene_args(res, prims, self.linear)
+
+    def __call__(self, *args, **kwargs):
+        if self.linear not in self.variants:
+            self.select(self.linear)
+        return self.variants[self.linear](*args, **kwargs)
 
 
 class RenderPass:
@@ -94,6 +121,12 @@ class RenderPass:
 
     def prepare_scene(self, scene_buffers: Resources) -> None:
         """(Re)allocate scene-size-dependent buffers; called when the scene changes."""
+
+    def use_texel_format(self, linear: bool) -> None:
+        """The frame's texture pool format (SceneKernel): every SceneKernel the pass holds follows it."""
+        for value in vars(self).values():
+            if isinstance(value, SceneKernel):
+                value.select(linear)
 
     def publish(self, res: Resources) -> None:
         """Put this pass's outputs into `res`."""

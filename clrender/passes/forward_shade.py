@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 
 from clrender.abi import gbuffer as layout
-from clrender.passes.base import SCENE_INPUTS, scene_args
+from clrender.passes.base import SCENE_INPUTS, SceneKernel
 from clrender.passes.ibl import env_kernel_args
 from clrender.passes.shade import ShadePass
 
@@ -28,8 +28,8 @@ class ForwardShadePass(ShadePass):
             "vis_prim", "vis_depth", "prims") + SCENE_INPUTS + ("srgb_encode", "prev_view_proj")
 
     def _build_kernel(self, device, config):
-        return device.kernel("forward_shade.cl", "forward_shade",
-                             {**self._light_defines(config), "GB_WRITE": layout.plane_mask(AOV_PLANES)})
+        return SceneKernel(device, "forward_shade.cl", "forward_shade",
+                           {**self._light_defines(config), "GB_WRITE": layout.plane_mask(AOV_PLANES)})
 
     def run(self, res):
         t = self.tile
@@ -40,7 +40,7 @@ class ForwardShadePass(ShadePass):
         self.kernel(self.queue, (self.tiles_x * t // self.vec, self.tiles_y * t), (t // self.vec, t),
                     res["vis_prim"].data, res["vis_depth"].data,
                     np.int32(res["width"]), np.int32(res["height"]), np.float32(res["far"]),
-                    *scene_args(res, res["prims"]), res["srgb_encode"].data, res["prev_view_proj"].data,
+                    *self.kernel.scene_args(res, res["prims"]), res["srgb_encode"].data, res["prev_view_proj"].data,
                     (prev_positions if prev_positions is not None else res["positions"]).data, np.int32(has_prev),
                     res["camera_params"].data, res["lights"].data, np.int32(res["n_lights"]),
                     np.float32(res["ambient"]), offsets.data, counts.data, lists.data, np.int32(capacity),

@@ -9,7 +9,7 @@ import numpy as np
 
 from clrender.device import capabilities
 from clrender.abi import gbuffer as layout
-from clrender.passes.base import SCENE_INPUTS, RenderPass, empty, round_up, scene_args, view_defines
+from clrender.passes.base import SCENE_INPUTS, RenderPass, SceneKernel, empty, round_up, view_defines
 
 
 # Pixels per work-group (GB_TILE_W × GB_TILE_H blocks, kernels/gbuffer.cl): consecutive rows of a
@@ -36,7 +36,7 @@ class GBufferPass(RenderPass):
         defines = {**layout.kernel_defines(), "VEC": self.vec, "GB_WRITE": layout.plane_mask(self.planes),
                    "SURFACE_TEXTURES": int("albedo_spec" in self.planes),
                    "SURFACE_EXTRAS": int("emissive_occlusion" in self.planes), **view_defines(ortho)}
-        self.kernel = device.kernel("gbuffer.cl", "gbuffer_resolve", defines)
+        self.kernel = SceneKernel(device, "gbuffer.cl", "gbuffer_resolve", defines)
 
     def allocate(self, width, height):
         self.gbuffer = empty(self.queue, len(layout.PLANES) * width * height, np.uint32)
@@ -53,5 +53,5 @@ class GBufferPass(RenderPass):
         tw = max(GB_TILE_W // self.vec, 1)
         self.kernel(self.queue, (round_up(-(-w // self.vec), tw), round_up(h, GB_TILE_H)), (tw, GB_TILE_H),
                     res["vis_depth"].data, res["vis_prim"].data, np.int32(w), np.int32(h), np.float32(res["far"]),
-                    *scene_args(res, res["prims"]), res["srgb_encode"].data,
+                    *self.kernel.scene_args(res, res["prims"]), res["srgb_encode"].data,
                     res["prev_view_proj"].data, prev_positions.data, np.int32(has_prev), self.gbuffer.data)

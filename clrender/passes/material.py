@@ -12,7 +12,7 @@ import numpy as np
 
 from clrender.device import capabilities
 from clrender.abi import gbuffer as layout
-from clrender.passes.base import SCENE_INPUTS, RenderPass, empty, round_up, scene_args, view_defines
+from clrender.passes.base import SCENE_INPUTS, RenderPass, SceneKernel, empty, round_up, view_defines
 from clrender.passes.ibl import ENV_OUTPUTS, env_kernel_args
 from clrender.passes.light_buffer import PRECISIONS, gltf_sums
 
@@ -51,8 +51,8 @@ class MaterialPass(RenderPass):
             "SPECULAR_RGB": int(config.light_buffer_specular == "rgb"),
             "LB_HALF": PRECISIONS[config.light_buffer_precision][1], "LB_GLTF": gltf_sums(config),
             "GB_WRITE": layout.plane_mask(AOV_PLANES), **view_defines(ortho)}
-        self.kernel = device.kernel("material.cl", "material", defines)
-        self.samples_kernel = device.kernel("material.cl", "material_samples", defines) if samples > 1 else None
+        self.kernel = SceneKernel(device, "material.cl", "material", defines)
+        self.samples_kernel = SceneKernel(device, "material.cl", "material_samples", defines) if samples > 1 else None
 
     def allocate(self, width, height):
         self.color = empty(self.queue, 3 * width * height, np.float32)
@@ -73,13 +73,13 @@ class MaterialPass(RenderPass):
         else:                            # pass 1 wrote the surface planes (gbuffer.geometry_planes)
             vis, prims, write_aov = res["msaa_vis_prims"], res["msaa_prims"], 0
         gsize = (round_up(-(-w * h // self.vec), 64),)
-        self.kernel(self.queue, gsize, (64,), vis.data, np.int32(w), np.int32(h), *scene_args(res, prims), *shading,
-                    np.int32(self.samples), np.int32(write_aov), res["camera_params"].data, *env_kernel_args(res),
+        self.kernel(self.queue, gsize, (64,), vis.data, np.int32(w), np.int32(h), *self.kernel.scene_args(res, prims),
+                    *shading, np.int32(self.samples), np.int32(write_aov), res["camera_params"].data, *env_kernel_args(res),
                     self.color.data, self.spread.data, res["gbuffer"].data)
         # samples s > 0: only the pixels where s sees another prim than sample 0 (material.cl)
         gsize = (round_up(-(-w * h // (self.vec * SAMPLE_RUNS)), 64),)
         for s in range(1, self.samples):
             self.samples_kernel(self.queue, gsize, (64,), vis.data, np.int32(w),
-                                np.int32(h), *scene_args(res, prims), *shading, np.int32(s), np.int32(self.samples),
+                                np.int32(h), *self.samples_kernel.scene_args(res, prims), *shading, np.int32(s), np.int32(self.samples),
                                 res["camera_params"].data, *env_kernel_args(res), self.color.data, self.spread.data,
                                 self.deltas.data)

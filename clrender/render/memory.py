@@ -29,6 +29,7 @@ def estimate(width: int, height: int, config, scene=None) -> dict:
     capacities) and clrender/render/plan.py says which passes run. With supersample k the passes
     before the resolve hold k²-sized buffers, the resolve and post chain output-sized ones."""
     from clrender.render import plan
+    from clrender.render.scene_upload import vertex_bytes
     k = getattr(config, "supersample", 1)
     out_w, out_h = int(width), int(height)
     width, height = k * out_w, k * out_h
@@ -48,9 +49,13 @@ def estimate(width: int, height: int, config, scene=None) -> dict:
         v, n_lights = len(scene.positions), len(scene.lights)
         texels = sum(tex.rgba.shape[0] * tex.rgba.shape[1] for tex in scene.textures) * 4 // 3 + 1
         buffers.update({
-            "scene.vertices": 32 * v + (12 * v if getattr(scene, "previous_positions", None) is not None else 0),
+            # tangents (16 bytes a vertex) were missing: Sponza x40 held 114 MiB over the estimate
+            "scene.vertices": vertex_bytes(scene)
+            + (12 * v if getattr(scene, "previous_positions", None) is not None else 0),
             "scene.triangles": 16 * scene.triangle_count,
             "scene.texels": 4 * texels,
+            # the decoded pool (clrender/render/texture_pool.py linear_texels), when the budget takes it
+            "scene.texels_linear": 16 * texels if 16 * texels <= getattr(config, "decoded_textures_mb", 0) * 2**20 else 0,
             "scene.lights": (structs.light_dtype.itemsize + 16) * n_lights,   # + culling spheres
         })
     name = max(buffers, key=buffers.get)

@@ -151,6 +151,7 @@ class Pipeline:
         for p in self.passes:
             if transparent or p not in self.transparency:
                 p.prepare_scene(scene_res)
+                p.use_texel_format(scene_res.values.get("texels_linear", False))
         clock.lap("prepare_ms")
 
         retries = 0

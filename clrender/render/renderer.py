@@ -79,12 +79,15 @@ class Renderer:
     def _scene_resources(self, scene: Scene):
         """The scene's device buffers and values for a frame: uploads (cached), lights, and the
         posed vertices of skinned and morphing meshes (the vertex pre-pass, clrender/passes/pose.py)."""
-        from clrender.render import memory, scene_upload as scene_gpu
+        from clrender.render import memory, scene_upload as scene_gpu, texture_pool
         from clrender.passes import Resources
         if scene_gpu.needs_upload(scene, self.device):
             memory.check(self.device, self.width, self.height, self.config, scene)
         upload = scene_gpu.upload(scene, self.device)
+        # the decoded texture pool lives with the upload (made once, at its first frame under a budget that takes it)
+        linear = texture_pool.linear_texels(self.device, upload, self.config.decoded_textures_mb)
         scene_res = Resources(buffers=dict(upload.buffers), values={
+            "texels_linear": linear,
             **upload.values, **scene_gpu.upload_lights(scene, self.device), "ambient": float(scene.ambient),
             "particle_systems": tuple(scene.particle_systems), "sun": scene.sun,
             "environment": getattr(scene, "environment", None), "deformation": scene.deformation})

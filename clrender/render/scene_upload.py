@@ -222,15 +222,29 @@ def vertex_tangents(scene: Scene):
     a clearcoat normal map or anisotropy and the scene has none; None when nothing needs them."""
     if scene.tangents is not None:
         return scene.tangents
-    sets = sorted({m.normal_uv.texcoord for m in scene.materials if m.normal_texture >= 0}
-                  | {m.clearcoat_normal_uv.texcoord for m in scene.materials
-                     if getattr(m, "clearcoat_normal_texture", -1) >= 0}
-                  | {m.anisotropy_uv.texcoord if m.anisotropy_texture >= 0 else m.normal_uv.texcoord
-                     for m in scene.materials if "anisotropy" in material_layers(m)})
+    sets = tangent_uv_sets(scene)
     if not sets:
         return None
     from clrender.scene.tangents import generate_tangents
     return generate_tangents(scene.positions, scene.normals, scene.uv_set(sets[0]), scene.triangles)
+
+
+def tangent_uv_sets(scene: Scene) -> list:
+    """The UV sets of the maps that need tangents (normal, clearcoat normal, anisotropy), sorted."""
+    return sorted({m.normal_uv.texcoord for m in scene.materials if m.normal_texture >= 0}
+                  | {m.clearcoat_normal_uv.texcoord for m in scene.materials
+                     if getattr(m, "clearcoat_normal_texture", -1) >= 0}
+                  | {m.anisotropy_uv.texcoord if m.anisotropy_texture >= 0 else m.normal_uv.texcoord
+                     for m in scene.materials if "anisotropy" in material_layers(m)})
+
+
+def vertex_bytes(scene: Scene) -> int:
+    """Device bytes of upload()'s per-vertex buffers: positions, normals, every UV set, tangents
+    (the scene's or generated), colours (clrender/render/memory.py's estimate)."""
+    v = len(scene.positions)
+    uv_sets = 1 + (0 if scene.extra_uvs is None else len(scene.extra_uvs))
+    tangents = scene.tangents is not None or bool(tangent_uv_sets(scene))
+    return v * (12 + 12 + 8 * uv_sets + (16 if tangents else 0) + (16 if scene.colors is not None else 0))
 
 
 # The arrays an upload reads. An entry keeps them (strong references, so that an identity compared
@@ -384,7 +398,7 @@ def upload(scene: Scene, device) -> Resources:
     }, values={"n_tris": scene.triangle_count, "scene_bounds": scene.bounds(),   # bounds: sun shadow fit
                "layered_materials": len(layers), "has_tangents": int(tangents is not None),
                "n_transparent_tris": transparent_triangle_count(scene), "n_vertices": len(scene.positions),
-               "has_colors": int(scene.colors is not None), "surface_extras": int(surface_extras(scene)),
+               "has_colors": int(scene.colors is not None), "n_textures": len(textures), "surface_extras": int(surface_extras(scene)),
                "gltf_scene": int(np.any(materials["flags"] & structs.MAT_GLTF_BRDF)),
                "transmissive_materials": len(tx)})
     if len(tx):                                  # see-through materials (clrender/passes/transmission.py)

@@ -5,6 +5,11 @@ each level is PIL's BOX resize, channel by channel in float32 linear space (sRGB
 decoded through `srgb_to_linear_lut`, alpha and linear textures as byte / 255), of the previous
 level's float values (not of its 8-bit codes), then encoded to 8 bits (`encode8`).
 
+`linear_texels` keeps, beside it, every texel decoded to float4 linear RGBA (kernels/texel_decode.cl),
+4× the bytes, when the render options' `decoded_textures_mb` allows: the G-buffer's samples then
+load floats instead of decoding each texel every time it is sampled (kernels/texture_vec.h
+TEXELS_LINEAR), for the same bits.
+
 `upload_pool` builds the pool on the device when it has doubles (kernels/mipmap.cl): level 0 is
 copied in and every further level computed there, bit-identical to `mip_chain`, because the kernel
 repeats PIL's arithmetic (`box_taps`: taps and double weights per output row / column, doubles
@@ -262,3 +267,43 @@ def _build_on_device(device, textures, infos, levels, texels_buf) -> None:
                                      encode.data, np.int32(k == 1))
     # No finish: the scratch arrays are released on return, and OpenCL keeps a released buffer until
     # the enqueued commands that use it complete; the in-order queue runs the frame after the levels.
+
+
+# -- the decoded pool -----------------------------------------------------------------------------------
+LINEAR_TEXEL_BYTES = 16          # float4 per texel (the RGBA8 pool: 4)
+
+
+def linear_texels(device, res, budget_mb: int) -> bool:
+    """Whether the scene `res` (clrender/render/scene_upload.py) has its decoded pool,
+    res.buffers["texels_linear"], making it now when its bytes fit `budget_mb` MiB and one device
+    allocation; False (samples decode the RGBA8 pool) when they do not, the budget is 0, the scene
+    has no texture or the device runs a pixel per work-item (GPUs: no lane-by-lane gathers to
+    save, 4x the bytes to read). Made once per scene upload: textures do not change between frames."""
+    from clrender.device import capabilities
+    if budget_mb <= 0 or capabilities.pixel_vector_width(device.cl_device) == 1:
+        return False            # GPUs, Oclgrind: a pixel per work-item reads the words (a quarter of the bytes)
+    if not res.values.get("n_textures"):
+        return False            # nothing to sample: no decode, no program
+    texels = res["texels"]
+    nbytes = LINEAR_TEXEL_BYTES * texels.size
+    if nbytes > budget_mb * 2**20 or nbytes > int(device.cl_device.max_mem_alloc_size):
+        return False
+    if "texels_linear" in res.buffers:
+        return True
+    import pyopencl.array as cla
+
+    q = device.queue
+    infos, levels = res["tex_infos"].get(queue=q), res["tex_levels"].get(queue=q)
+    out = cla.empty(q, 4 * texels.size, np.float32)
+    kernel = device.kernel("texel_decode.cl", "decode_texels")
+    for info in infos:
+        first = int(levels[int(info["first_level"])]["offset"])
+        last = levels[int(info["first_level"]) + int(info["levels"]) - 1]
+        count = int(last["offset"]) + int(last["width"]) * int(last["height"]) - first
+        if count <= 0:
+            continue
+        kernel(q, (-(-count // 64) * 64,), (64,), texels.data, np.int32(first), np.int32(count),
+               res["srgb_lut"].data, np.int32(info["lut"]), out.data)
+    res.buffers["texels_linear"] = out
+    return True
+
