@@ -58,7 +58,7 @@ ORIGINS = ("pip", "conda", "system")
 # simulators after). Chosen by measurement, not by name (python -m bench.devices, docs/devices.md):
 # PoCL 3.1 (LLVM 15) renders the user's frame 1.10-1.19x faster than Intel's runtime, which is
 # 1.24-1.39x faster than pip's PoCL 3.0 (LLVM 14) and first-runs in 2/3 of its time (AVX-512, before
-# kernels/vec.h inlined 3.0's built-ins; on AVX2 after it the three frames are within 10 %).
+# kernels/vec.h inlined 3.0's built-ins; on AVX2 after it the three frames are within 20 %).
 CPU_IMPLEMENTATION_ORDER = (("pocl", (3, 1)), ("intel", ()), ("pocl", ()))
 CPU_IMPLEMENTATIONS = tuple(dict.fromkeys(key for key, _ in CPU_IMPLEMENTATION_ORDER))
 
