@@ -160,13 +160,6 @@ CL_OVL floatV clr_minps(floatV a, floatV b) { return a < b ? a : b; }
     CL_OVL T clr_fmin(T a, S b) { return clr_fmin(a, (T)b); }                                    \
     CL_OVL T clr_clamp(T x, T lo, T hi) { return clr_fmin(clr_fmax(x, lo), hi); }                \
     CL_OVL T clr_clamp(T x, S lo, S hi) { return clr_fmin(clr_fmax(x, (T)lo), (T)hi); }
-#define CL_MINMAX(T, S)                                                                           \
-    CL_OVL T clr_max(T a, T b) { return a > b ? a : b; }                                          \
-    CL_OVL T clr_min(T a, T b) { return b < a ? b : a; }                                          \
-    CL_OVL T clr_max(T a, S b) { return clr_max(a, (T)b); }                                      \
-    CL_OVL T clr_min(T a, S b) { return clr_min(a, (T)b); }                                      \
-    CL_OVL T clr_clamp(T x, T lo, T hi) { return clr_min(clr_max(x, lo), hi); }                  \
-    CL_OVL T clr_clamp(T x, S lo, S hi) { return clr_min(clr_max(x, (T)lo), (T)hi); }
 #define CL_SFMINMAX(T)                                                                            \
     CL_OVL T clr_fmax(T a, T b) { return (a > b || b != b) ? a : b; }                            \
     CL_OVL T clr_fmin(T a, T b) { return (a < b || b != b) ? a : b; }                            \
@@ -181,34 +174,27 @@ CL_FMINMAX(floatV, float)
     CL_OVL T clr_max(T a, T b) { return a > b ? a : b; }                                          \
     CL_OVL T clr_min(T a, T b) { return b < a ? b : a; }                                          \
     CL_OVL T clr_clamp(T x, T lo, T hi) { return clr_min(clr_max(x, lo), hi); }
+#define CL_MINMAX(T, S) CL_SMINMAX(T)                                                          \
+    CL_OVL T clr_max(T a, S b) { return clr_max(a, (T)b); }                                      \
+    CL_OVL T clr_min(T a, S b) { return clr_min(a, (T)b); }                                      \
+    CL_OVL T clr_clamp(T x, S lo, S hi) { return clr_min(clr_max(x, (T)lo), (T)hi); }
 CL_SMINMAX(int) CL_SMINMAX(uint) CL_SMINMAX(long) CL_SMINMAX(ulong)
 CL_MINMAX(intV, int) CL_MINMAX(uintV, uint)
 CL_OVL float clr_fabs(float x) { return as_float(as_uint(x) & 0x7fffffffu); }
 CL_OVL floatV clr_fabs(floatV x) { return as_floatV(as_uintV(x) & 0x7fffffffu); }
-CL_OVL int clr_any(intV m) {
+/* any / all: the lanes folded by | / & down to one, its sign bit */
 #if VEC == 16
-    int8 t8 = m.lo | m.hi;
-    int4 t4 = t8.lo | t8.hi;
+#define CL_LANES_FOLD(name, op) CL_OVL int name(intV m) { \
+    int8 t8 = m.lo op m.hi; int4 t4 = t8.lo op t8.hi; int2 t2 = t4.lo op t4.hi; return (t2.x op t2.y) < 0; }
 #elif VEC == 8
-    int4 t4 = m.lo | m.hi;
+#define CL_LANES_FOLD(name, op) CL_OVL int name(intV m) { \
+    int4 t4 = m.lo op m.hi; int2 t2 = t4.lo op t4.hi; return (t2.x op t2.y) < 0; }
 #else
-    int4 t4 = m;
+#define CL_LANES_FOLD(name, op) CL_OVL int name(intV m) { \
+    int2 t2 = m.lo op m.hi; return (t2.x op t2.y) < 0; }
 #endif
-    int2 t2 = t4.lo | t4.hi;
-    return (t2.x | t2.y) < 0;
-}
-CL_OVL int clr_all(intV m) {
-#if VEC == 16
-    int8 t8 = m.lo & m.hi;
-    int4 t4 = t8.lo & t8.hi;
-#elif VEC == 8
-    int4 t4 = m.lo & m.hi;
-#else
-    int4 t4 = m;
-#endif
-    int2 t2 = t4.lo & t4.hi;
-    return (t2.x & t2.y) < 0;
-}
+CL_LANES_FOLD(clr_any, |)
+CL_LANES_FOLD(clr_all, &)
 /* vloadN/vstoreN: a plain vector access at element alignment (one unaligned move). Every element
  * type has its overload: C overloading would otherwise convert a mismatched pointer silently. */
 #define CL_VLS_AS(T, N, AS)                                                                       \

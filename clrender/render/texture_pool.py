@@ -306,4 +306,3 @@ def linear_texels(device, res, budget_mb: int) -> bool:
                res["srgb_lut"].data, np.int32(info["lut"]), out.data)
     res.buffers["texels_linear"] = out
     return True
-
