@@ -154,13 +154,15 @@ OPTIONS: tuple[Option, ...] = (
     Option("reuse_visibility", bool, False,
            help="with --pipeline light_prepass or light_indexed: read the first pass's visibility "
                 "instead of rasterizing again (same pixels; not the report's algorithm; default {default})"),
-    Option("tile_size", int, 8, choices=TILE_SIZES, metavar="N",    # bench.gbuffer, 2-core AVX-512: 8 < 16 < 32 ms
-           help="raster tile size in pixels: {choices}"),
+    Option("tile_size", int, None, choices=TILE_SIZES, nullable=True, metavar="N",
+           help="raster tile size in pixels: {choices}; None: measured per CPU device over its first runs "
+                "(docs/devices.md, autotune), else 8 (default {default})"),
     Option("light_tile_size", int, 32, choices=TILE_SIZES, metavar="N",   # bench.lights: 32 < 16 < 8 ms
            help="light-culling tile size: {choices}"),
     Option("shadow_tile_size", int, None, choices=TILE_SIZES, nullable=True, flag=None,
-           help="shadow-map raster tiles: {choices}; None: 32 on CPUs (bench.shadows: binning 117 -> 20 ms, "
-                "raster 307 -> 262 ms vs 8), tile_size on GPUs (default {default})"),
+           help="shadow-map raster tiles: {choices}; None: on CPUs measured per device (docs/devices.md, "
+                "autotune), else 32 (bench.shadows: binning 117 -> 20 ms, raster 307 -> 262 ms vs 8); "
+                "tile_size on GPUs (default {default})"),
     Option("light_culling", str, "tiled", choices=LIGHT_CULLING,
            help="light lists per tile: culled against tile frusta, every light, each light's screen "
                 "quad, or tiled lists with per-pixel stencil bits (default {default}; docs/light_accumulation.md)"),

@@ -236,6 +236,24 @@ def tile_size_for(dev: cl.Device, requested: int) -> int:
     return requested
 
 
+def tile_size_for_ok(dev: cl.Device, requested: int) -> bool:
+    try:
+        tile_size_for(dev, requested)
+        return True
+    except ValueError:
+        return False
+
+
+DEFAULT_TILE = 8                # the camera raster's tile where neither config nor a tune chose one
+DEFAULT_SHADOW_TILE_CPU = 32    # the shadow maps' tile on CPUs, likewise
+
+
+def estimate_tile(tile) -> int:
+    """A tile size for buffer estimates before a device is known: None (tuned) counts as the
+    smallest candidate, DEFAULT_TILE, whose tiles are the most (an upper bound)."""
+    return tile or DEFAULT_TILE
+
+
 SCAN_ITEMS = 8    # counts per work-item in kernels/scan.cl
 
 
@@ -313,21 +331,6 @@ def compiler_has_512bit_vectors(dev: cl.Device) -> bool:
         return True
     cache.write_json(name, {"device": f"{dev.platform.version} {dev.name}", "wide_native": _wide[key]})
     return _wide[key]
-
-
-def shadow_tile_size(dev: cl.Device, config) -> int:
-    """Raster tile of the shadow maps: config.shadow_tile_size, else 32 on CPUs (a work-group of
-    32/VEC x 1 work-items walking whole tile columns: a 2048² map bins 16x fewer tile entries
-    than with 8-pixel tiles) and the camera's tile_size on GPUs (a pixel per work-item: 32² would
-    exceed most work-group limits)."""
-    if config.shadow_tile_size is not None:
-        return tile_size_for(dev, config.shadow_tile_size)
-    return 32 if pixel_vector_width(dev) > 1 else tile_size_for(dev, config.tile_size)
-
-
-def raster_vector_width(dev: cl.Device, tile: int) -> int:
-    """A raster work-item's pixel run must fit in its tile row."""
-    return min(pixel_vector_width(dev), tile)
 
 
 def build_options(dev: cl.Device) -> list[str]:

@@ -30,6 +30,7 @@ from clrender.device.core import (
 
 PROBE_TIMEOUT_S = 900
 ENV_IN_PROBE = "CLRENDER_PROBE_CHILD"       # set in the child: it is the probe
+_probed_here: set = set()     # probe keys this process asked a child for
 _answers: dict = {}
 
 
@@ -63,8 +64,14 @@ def probe_error(info: DeviceInfo) -> Optional[str]:
         # must not be cached as its verdict (every later run would refuse a good device)
         raise_if_interrupted(start)
         cache.write_json(name, {"device": info.label, "error": answer})
+        _probed_here.add(key)
     _answers[key] = answer
     return answer
+
+
+def probed_in_this_process(info: DeviceInfo) -> bool:
+    """Whether this process ran `info`'s probe (a cold start: the machine or the kernels are new)."""
+    return _key(info) in _probed_here
 
 
 def _ask_child(info: DeviceInfo) -> Optional[str]:

@@ -23,6 +23,8 @@ def device_record(d, default_id: Optional[str], describe_error: Callable[[BaseEx
             record[key] = getattr(d, key)
         except Exception:
             record[key] = None
+    from clrender.device import tuning
+    record["raster"] = tuning.summary(d.cl_device)            # the tuned VEC and tiles, if any
     if not probe:
         record["kernels"], record["kernels_error"] = "not probed", None
         return record
@@ -46,9 +48,10 @@ def devices_table(records: list[dict]) -> str:
     """The `clrender devices` table, then one line per kernel-build or capability failure.
     IMPLEMENTATION: key, version and (pip/conda) origin, the --device names that pick it; VEC
     P/N/PX: the driver's preferred and native float vector widths, and the pixels per work-item
-    clrender's per-pixel kernels use there."""
+    clrender's per-pixel kernels use there; RASTER V/T/S: the raster's VEC, camera tile and shadow
+    tile ("tuned": measured on this machine, clrender/render/autotune.py)."""
     header = ("", "ID", "TYPE", "IMPLEMENTATION", "DEVICE", "CU", "WG", "LOCAL", "GLOBAL", "MAX ALLOC",
-              "I64 ATOM", "VEC P/N/PX", "KERNELS")
+              "I64 ATOM", "VEC P/N/PX", "RASTER V/T/S", "KERNELS")
     rows = []
     for r in records:
         impl = " ".join(filter(None, (r.get("implementation"), r.get("implementation_version")))) or "?"
@@ -61,7 +64,7 @@ def devices_table(records: list[dict]) -> str:
                      format_bytes(r.get("global_mem_bytes")), format_bytes(r.get("max_alloc_bytes")),
                      {True: "yes", False: "no"}.get(r.get("int64_atomics"), "?"),
                      "/".join(str(vec.get(k, "?")) for k in ("preferred_float", "native_float", "pixel")),
-                     r["kernels"]))
+                     _raster_cell(r.get("raster")), r["kernels"]))
     widths = [max(len(row[i]) for row in (header, *rows)) for i in range(len(header))]
     lines = ["  ".join(cell.ljust(w) for cell, w in zip(row, widths)).rstrip() for row in (header, *rows)]
     for r in records:
@@ -70,3 +73,12 @@ def devices_table(records: list[dict]) -> str:
         if r.get("summary_error"):
             lines.append(f"{r['id']}: capabilities unavailable: {r['summary_error']}")
     return "\n".join(lines)
+
+
+def _raster_cell(raster: Optional[dict]) -> str:
+    if not raster:
+        return "?"
+    cell = f"{raster['vec']}/{raster['tile']}/{raster['shadow_tile']}"
+    if not raster.get("tuned"):
+        return cell
+    return cell + (" tuned" if raster.get("complete") else " tuning")

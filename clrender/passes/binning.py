@@ -3,6 +3,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from clrender.device.capabilities import estimate_tile
+from clrender.device.tuning import camera_tile_size
 from clrender.passes.base import Overflow, RenderPass, fill_zero, launch_1d, round_up, scan_for, zeros
 
 # Initial tile-list room once the scene is known: min(2 per triangle, LIST_PER_TILE per tile).
@@ -28,15 +30,17 @@ class BinningPass(RenderPass):
     @classmethod
     def buffer_bytes(cls, width, height, config, scene=None):
         """Per tile: count, offset, cursor; the tile lists at their initial capacity."""
-        tiles = -(-width // config.tile_size) * -(-height // config.tile_size)
+        t = estimate_tile(config.tile_size)          # None (tuned): the smallest candidate's, an upper bound
+        tiles = -(-width // t) * -(-height // t)
         n_tris = None if scene is None else scene.triangle_count
         return {"binning.tiles": 12 * tiles, "binning.tile_prims": 4 * initial_list_capacity(tiles, n_tris)}
 
     def __init__(self, device, config, tile: int | None = None, samples: int = 1):
-        """tile: the tile side (default config.tile_size; shadow maps bin to their own).
+        """tile: the tile side (default config.tile_size, else the device's tuned tile:
+        tuning.camera_tile_size; shadow maps bin to their own).
         samples: bin for every msaa sub-sample point (kernels/samples.h), not only the centres."""
         super().__init__(device, config)
-        self.tile = tile or config.tile_size
+        self.tile = tile or camera_tile_size(device.cl_device, config)
         defines = {"TILE": self.tile, **({"SAMPLES": int(samples)} if samples > 1 else {})}
         self.count_kernel = device.kernel("binning.cl", "bin_count", defines)
         self.fill_kernel = device.kernel("binning.cl", "bin_fill", defines)

@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 
 from clrender.abi import structs
-from clrender.device import capabilities
+from clrender.device import capabilities, tuning
 from clrender.passes.base import Overflow, RenderPass, Resources, empty, view_defines
 from clrender.passes.binning import BinningPass
 from clrender.passes.setup import SetupPass, per_triangle_bytes
@@ -38,7 +38,8 @@ class FragmentsPass(RenderPass):
         """Per pixel: count, list length, depth range; its own setup (BLEND triangles) and binning."""
         if scene is None:
             return {}
-        tiles = -(-width // config.tile_size) * -(-height // config.tile_size)
+        t = capabilities.estimate_tile(config.tile_size)
+        tiles = -(-width // t) * -(-height // t)
         n_blend = transparent_triangle_count(scene)
         return {"fragments.counts+range": 16 * width * height, "fragments.binning": 44 * tiles,
                 "fragments.setup": per_triangle_bytes(scene.triangle_count, config)
@@ -49,9 +50,9 @@ class FragmentsPass(RenderPass):
         super().__init__(device, config)
         self.ortho = bool(ortho)
         self.setup = SetupPass(device, config, select="blend", ortho=ortho)
-        self.binning = BinningPass(device, config)
-        self.tile = capabilities.tile_size_for(device.cl_device, config.tile_size)
-        self.vec = capabilities.raster_vector_width(device.cl_device, self.tile)
+        self.tile = tuning.camera_tile_size(device.cl_device, config)
+        self.binning = BinningPass(device, config, self.tile)
+        self.vec = tuning.raster_vector_width(device.cl_device, self.tile)
         self.defines = {"TILE": self.tile, "VEC": self.vec, "MAX_FRAGMENTS": config.max_fragments_per_pixel,
                         **view_defines(ortho)}
         self.count_kernel = device.kernel("fragments.cl", "fragment_count", self.defines)

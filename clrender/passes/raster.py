@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from clrender.device import capabilities
+from clrender.device import capabilities, tuning
 from clrender.passes.base import RenderPass, empty
 
 
@@ -18,16 +18,19 @@ class RasterPass(RenderPass):
         return {"raster.vis_depth+vis_prim": 8 * width * height}
 
     def __init__(self, device, config, ortho: bool = False, depth_only: bool = False, tile: int | None = None,
-                 samples: int = 1):
+                 samples: int = 1, vec: int | None = None):
         """ortho: orthographic prims (setup.cl ORTHO). depth_only (shadow maps): no visibility
         buffer of its own; run() writes depth into res["raster_target"] at res["raster_offset"]
         with row stride res["raster_stride"] (a region of the shadow atlas), built with DEPTH_ONLY
         (the nearest depth, no visibility order). tile: as the BinningPass it reads (default
-        config.tile_size). samples > 1: a nearest fragment per msaa sub-sample point
-        (kernels/samples.h); vis_prim holds `samples` planes of W·H."""
+        config.tile_size, else the device's tuned tile: tuning.camera_tile_size). samples > 1:
+        a nearest fragment per msaa sub-sample point (kernels/samples.h); vis_prim holds `samples`
+        planes of W·H. vec: pixels per work-item (default tuning.raster_vector_width; the
+        autotune times others). Neither tile nor vec changes a pixel."""
         super().__init__(device, config)
-        self.tile = capabilities.tile_size_for(device.cl_device, tile or config.tile_size)
-        self.vec = capabilities.raster_vector_width(device.cl_device, self.tile)
+        dev = device.cl_device
+        self.tile = capabilities.tile_size_for(dev, tile) if tile else tuning.camera_tile_size(dev, config)
+        self.vec = min(vec, self.tile) if vec else tuning.raster_vector_width(dev, self.tile)
         self.depth_only = depth_only
         if depth_only:
             self.inputs = self.inputs + ("raster_target", "raster_offset", "raster_stride")

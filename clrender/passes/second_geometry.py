@@ -12,6 +12,7 @@ D3D pattern (docs/raster_contract.md §10): one setup, binning and raster for al
 from __future__ import annotations
 
 from clrender.abi import structs
+from clrender.device import capabilities
 from clrender.passes.base import RenderPass, Resources
 from clrender.passes.binning import BinningPass, initial_list_capacity
 from clrender.passes.raster import RasterPass
@@ -71,7 +72,8 @@ class SampleGeometryPass(RenderPass):
     def buffer_bytes(cls, width, height, config, scene=None):
         """One setup and binning; a visibility buffer per sub-sample and one depth scratch."""
         px = width * height
-        tiles = -(-width // config.tile_size) * -(-height // config.tile_size)
+        side = capabilities.estimate_tile(config.tile_size)   # None (tuned): the smallest candidate's, an upper bound
+        tiles = -(-width // side) * -(-height // side)
         t = scene.triangle_count if scene is not None else 0
         prims = structs.prim_dtype.itemsize * max(1024, t + t // 8)
         return {"msaa_geometry": 4 * px * (config.msaa + 1) + 12 * tiles + 4 * initial_list_capacity(tiles, t)

@@ -25,7 +25,7 @@ import numpy as np
 import pyopencl as cl
 import pyopencl.array as cla
 
-from clrender.device import capabilities, limits
+from clrender.device import limits, tuning
 from clrender.passes import shadow_views
 from clrender.abi import structs
 from clrender.errors import DeviceMemoryError
@@ -42,7 +42,7 @@ class _MapStages:
     """Setup, binning and depth-only raster sized for maps of one side and projection."""
 
     def __init__(self, device, config, size: int, ortho: bool, scene_res):
-        tile = capabilities.shadow_tile_size(device.cl_device, config)
+        tile = tuning.shadow_tile_size(device.cl_device, config)
         self.setup = SetupPass(device, config, ortho=ortho, status=False)    # nothing reads a map's statuses
         self.binning = BinningPass(device, config, tile)
         self.raster = RasterPass(device, config, ortho=ortho, depth_only=True, tile=tile)

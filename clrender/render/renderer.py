@@ -48,6 +48,10 @@ class Renderer:
             raise ValueError(f"{self.width}x{self.height} at supersample {k} is {k * self.width}x{k * self.height} "
                              f"internally, too many pixels for 32-bit buffer offsets; lower supersample or the size")
         self.device = open_device(device)       # probed once per machine and kernel change (device_probe)
+        from clrender.device import tuning
+        from clrender.render import autotune
+        autotune.ensure(self.device)            # VEC and tiles measured over a device's first runs, then cached
+        self.config = tuning.resolved_tiles(self.device.cl_device, self.config)   # what this device runs
         from clrender.render import memory
         memory.check(self.device, self.width, self.height, self.config)   # before building or allocating
         from clrender.render.pipeline import Pipeline

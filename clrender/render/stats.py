@@ -48,7 +48,7 @@ def frame_stats(pipeline, res, timings, readback, transparent: bool, retries: in
     stats.update(pipeline.setup.triangle_stats())
     stats["prims"] = int(pipeline.setup.prim_total.get(queue=queue)[0])
     stats["tile_entries"] = int(pipeline.binning.total.get(queue=queue)[0])
-    stats["tile_size"] = config.tile_size
+    stats["tile_size"] = pipeline.binning.tile          # config.tile_size None: the device's tuned tile
     stats["retries"] = retries
     stats["supersample"] = config.supersample
     stats["pipeline"] = config.pipeline
