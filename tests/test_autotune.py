@@ -182,7 +182,7 @@ def test_a_cold_start_leaves_the_tune_to_the_next_run(cpu, fresh, monkeypatch):
     from clrender.device import probe
     calls = []
     monkeypatch.setattr(autotune, "measure", _fake_measure(calls, {c: 1.0 for _, _, cs in autotune.steps(cpu.cl_device) for c in cs}))
-    probe._probed_here.add(probe._key(cpu.info))
+    probe._probed_here.add(cpu.cl_device.int_ptr)
     assert autotune.ensure(cpu) is None and not calls and tuning.cached_record(cpu.cl_device) is None
     probe._probed_here.clear()                                # the next process
     assert autotune.ensure(cpu) == tuning.default_choice(cpu.cl_device) and calls

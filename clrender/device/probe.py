@@ -30,18 +30,25 @@ from clrender.device.core import (
 
 PROBE_TIMEOUT_S = 900
 ENV_IN_PROBE = "CLRENDER_PROBE_CHILD"       # set in the child: it is the probe
-_probed_here: set = set()     # probe keys this process asked a child for
+_probed_here: set = set()     # cl_device.int_ptr of the devices this process asked a child about
 _answers: dict = {}
 
 
-def _key(info: DeviceInfo) -> str:
-    h = hashlib.sha256()
-    for part in capabilities.driver_identity(info.cl_device):
+def kernels_key(dev, salt: bytes = b"") -> str:
+    """A cache key for what a device's kernels answer: `salt` (what is cached), the driver's
+    identity (capabilities.driver_identity) and every kernel source. The probe's answer and the
+    raster's tune (clrender/device/tuning.py) are keyed by it: a new driver or kernel asks again."""
+    h = hashlib.sha256(salt)
+    for part in capabilities.driver_identity(dev):
         h.update(part.encode() + b"\0")
     for p in sorted(kernels_dir().rglob("*")):
         if p.suffix in (".cl", ".h"):
             h.update(p.name.encode() + p.read_bytes())
     return h.hexdigest()[:32]
+
+
+def _key(info: DeviceInfo) -> str:
+    return kernels_key(info.cl_device)
 
 
 def probe_error(info: DeviceInfo) -> Optional[str]:
@@ -64,14 +71,14 @@ def probe_error(info: DeviceInfo) -> Optional[str]:
         # must not be cached as its verdict (every later run would refuse a good device)
         raise_if_interrupted(start)
         cache.write_json(name, {"device": info.label, "error": answer})
-        _probed_here.add(key)
+        _probed_here.add(info.cl_device.int_ptr)
     _answers[key] = answer
     return answer
 
 
 def probed_in_this_process(info: DeviceInfo) -> bool:
     """Whether this process ran `info`'s probe (a cold start: the machine or the kernels are new)."""
-    return _key(info) in _probed_here
+    return info.cl_device.int_ptr in _probed_here
 
 
 def _ask_child(info: DeviceInfo) -> Optional[str]:

@@ -11,7 +11,6 @@ RenderConfig.tile_size / shadow_tile_size always wins. No choice changes a pixel
 """
 from __future__ import annotations
 
-import hashlib
 import os
 from dataclasses import asdict, dataclass
 from typing import Optional
@@ -41,9 +40,10 @@ def enabled(dev) -> bool:
 
 
 def default_choice(dev) -> Choice:
-    """Today's per-vendor choice (what an untuned device runs)."""
-    return Choice(capabilities.pixel_vector_width(dev), capabilities.DEFAULT_TILE,
-                  capabilities.DEFAULT_SHADOW_TILE_CPU)
+    """Today's per-vendor choice (what an untuned device runs; GPUs: the camera's tile for shadows)."""
+    vec = capabilities.pixel_vector_width(dev)
+    return Choice(vec, capabilities.DEFAULT_TILE,
+                  capabilities.DEFAULT_SHADOW_TILE_CPU if vec > 1 else capabilities.DEFAULT_TILE)
 
 
 def choice(dev) -> Optional[Choice]:
@@ -79,15 +79,9 @@ def from_record(record) -> Optional[Choice]:
 
 
 def entry_name(dev) -> str:
-    """probe/tune-<key>.json: driver identity (capabilities.driver_identity), kernel sources, VERSION."""
-    from clrender.device.core import kernels_dir
-    h = hashlib.sha256(f"tune {VERSION}\0".encode())
-    for part in capabilities.driver_identity(dev):
-        h.update(part.encode() + b"\0")
-    for p in sorted(kernels_dir().rglob("*")):
-        if p.suffix in (".cl", ".h"):
-            h.update(p.name.encode() + p.read_bytes())
-    return f"probe/tune-{h.hexdigest()[:32]}.json"
+    """probe/tune-<key>.json, keyed like the probe's answer (probe.kernels_key) and by VERSION."""
+    from clrender.device.probe import kernels_key
+    return f"probe/tune-{kernels_key(dev, f'tune {VERSION}'.encode() + bytes(1))}.json"
 
 
 def cached_record(dev) -> Optional[dict]:
@@ -106,11 +100,7 @@ def summary(dev) -> Optional[dict]:
             return None
         c = choice(dev)
         record = cached_record(dev) if c is not None else None
-        if c is None:
-            vec = capabilities.pixel_vector_width(dev)
-            c = Choice(vec, capabilities.DEFAULT_TILE,
-                       capabilities.DEFAULT_SHADOW_TILE_CPU if vec > 1 else capabilities.DEFAULT_TILE)
-        out = {**asdict(c), "tuned": record is not None}
+        out = {**asdict(c or default_choice(dev)), "tuned": record is not None}
         if record is not None:
             out["complete"] = bool(record.get("complete"))
             out["measured"] = {k: record.get(k) for k in ("measured_ms", "seconds", "runs", "size", "shadow_size")}
